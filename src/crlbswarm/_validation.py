@@ -1,0 +1,89 @@
+"""Input checks shared by the public functions.
+
+Every check raises :class:`ValueError` whose message starts with the name of the
+offending argument, so that the CLI can print it as one line. The checks never
+modify the caller's array: they return a new float array (or a read-only view).
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+__all__: list[str] = []
+
+
+def as_float_array(value: object, name: str) -> np.ndarray:
+    """Convert ``value`` to a float64 array or raise a ``ValueError`` naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected numbers, got {value!r}") from exc
+    return arr
+
+
+def check_finite(arr: np.ndarray, name: str) -> np.ndarray:
+    """Raise if ``arr`` holds NaN or infinity."""
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: must be finite (found NaN or inf)")
+    return arr
+
+
+def positions(value: object, name: str) -> np.ndarray:
+    """Check an array of planar positions of shape ``(..., M, 2)``."""
+    arr = as_float_array(value, name)
+    if arr.ndim < 2 or arr.shape[-1] != 2:
+        raise ValueError(f"{name}: expected shape (..., M, 2), got {arr.shape}")
+    if arr.shape[-2] < 1:
+        raise ValueError(f"{name}: needs at least one UAV, got shape {arr.shape}")
+    return check_finite(arr, name)
+
+
+def point(value: object, name: str) -> np.ndarray:
+    """Check a planar point (or batch of points) of shape ``(..., 2)``."""
+    arr = as_float_array(value, name)
+    if arr.ndim < 1 or arr.shape[-1] != 2:
+        raise ValueError(f"{name}: expected shape (..., 2), got {arr.shape}")
+    return check_finite(arr, name)
+
+
+def positive(value: object, name: str) -> np.ndarray:
+    """Check a strictly positive, finite number or array of them."""
+    arr = as_float_array(value, name)
+    check_finite(arr, name)
+    if not np.all(arr > 0):
+        raise ValueError(f"{name}: must be > 0, got {value!r}")
+    return arr
+
+
+def finite(value: object, name: str) -> np.ndarray:
+    """Check a finite number or array of them."""
+    return check_finite(as_float_array(value, name), name)
+
+
+def count(value: object, name: str, minimum: int) -> int:
+    """Check an integer count of at least ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"{name}: expected an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be at least {minimum}, got {value}")
+    return int(value)
+
+
+def broadcast(name: str, *shapes: tuple[int, ...]) -> tuple[int, ...]:
+    """Broadcast shapes or raise a ``ValueError`` naming the argument ``name``."""
+    try:
+        return np.broadcast_shapes(*shapes)
+    except ValueError as exc:
+        raise ValueError(
+            f"{name}: shapes {', '.join(str(s) for s in shapes)} do not broadcast"
+        ) from exc
+
+
+def scalar(value: object, name: str) -> float:
+    """Check a single finite number."""
+    arr = finite(value, name)
+    if arr.ndim != 0:
+        raise ValueError(f"{name}: expected a single number, got shape {arr.shape}")
+    return float(arr)

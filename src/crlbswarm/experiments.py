@@ -1,0 +1,227 @@
+r"""Experiments behind the paper's figures: data only, no plotting and no files.
+
+* :func:`crlb_vs_altitude` — Fig. 2, the CRLB of :math:`F^*` and of every benchmark
+  formation (:mod:`crlbswarm.formations`) against the flight altitude.
+* :func:`optimal_elevation_curve` — :math:`\phi^*(H)` and :math:`r^*(H)` over a wide altitude
+  range (1 m to 20 km by default), showing the limits 54.74 deg and 45 deg of Sec. III.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _validation as _v
+from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
+from .fisher import crlb
+from .formations import (
+    arc_formation,
+    fixed_radius_polygon,
+    line_formation,
+    random_disc_formations,
+)
+from .radar import Radar
+
+__all__ = [
+    "FORMATION_LABELS",
+    "AltitudeSweep",
+    "ElevationCurve",
+    "crlb_vs_altitude",
+    "optimal_elevation_curve",
+]
+
+#: Altitudes of Fig. 2 by default: 10 m to 200 m in steps of 5 m.
+DEFAULT_ALTITUDES = np.arange(10.0, 200.0 + 1e-9, 5.0)
+
+#: Legend labels of the formations of Fig. 2, F* first (keys are CSV column stems).
+FORMATION_LABELS: dict[str, str] = {
+    "optimal": "F* (CRLB-optimal)",
+    "fixed_polygon": "regular polygon, fixed radius",
+    "arc": "one-sided 90° arc at r*",
+    "line": "line at distance r*",
+    "random_disc": "random in disc of radius 2r* (mean)",
+}
+
+_DEFAULT_RADAR = Radar()
+
+
+@dataclass(frozen=True)
+class AltitudeSweep:
+    """Data of Fig. 2: CRLB against altitude for :math:`F^*` and the benchmarks.
+
+    Attributes
+    ----------
+    altitude : ndarray, shape (K,)
+        Flight altitudes, m.
+    n_uavs : int
+        Number of UAVs M.
+    bound : ndarray, shape (K,)
+        Theoretical bound :math:`4/\\sum_m w_m^*`, eq. (11), m^2.
+    crlb : dict of str to ndarray, shape (K,)
+        CRLB of each formation, m^2, keyed as :data:`FORMATION_LABELS`; for
+        ``random_disc`` the mean over the draws.
+    sem : dict of str to ndarray, shape (K,)
+        Standard error of each entry of ``crlb`` (zero for deterministic formations).
+    parameters : dict
+        The benchmark parameters used (fixed radius, arc span, disc factor, draws, seed).
+    """
+
+    altitude: np.ndarray
+    n_uavs: int
+    bound: np.ndarray
+    crlb: dict[str, np.ndarray]
+    sem: dict[str, np.ndarray]
+    parameters: dict[str, float]
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Flat columns for a CSV file: altitude, bound, then ``crlb_<name>`` and ``sem_<name>``."""
+        cols = {"altitude_m": self.altitude, "bound_m2": self.bound}
+        for name, values in self.crlb.items():
+            cols[f"crlb_{name}_m2"] = values
+        for name, values in self.sem.items():
+            if np.any(values):
+                cols[f"sem_{name}_m2"] = values
+        return cols
+
+
+@dataclass(frozen=True)
+class ElevationCurve:
+    """Optimal elevation and radius against altitude (Sec. III).
+
+    Attributes
+    ----------
+    altitude : ndarray, shape (K,)
+        Flight altitudes, m.
+    elevation : ndarray, shape (K,)
+        :math:`\\phi^*`, rad.
+    radius : ndarray, shape (K,)
+        :math:`r^* = H/\\tan\\phi^*`, m.
+    """
+
+    altitude: np.ndarray
+    elevation: np.ndarray
+    radius: np.ndarray
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Flat columns for a CSV file (elevation in degrees, as at every edge)."""
+        return {
+            "altitude_m": self.altitude,
+            "elevation_deg": np.degrees(self.elevation),
+            "radius_m": self.radius,
+        }
+
+
+def crlb_vs_altitude(
+    altitudes: object = DEFAULT_ALTITUDES,
+    n_uavs: int = 6,
+    radar: Radar = _DEFAULT_RADAR,
+    *,
+    fixed_radius: float = 5.0,
+    arc_span: float = 0.5 * np.pi,
+    disc_factor: float = 2.0,
+    n_random: int = 200,
+    seed: int = 0,
+) -> AltitudeSweep:
+    """CRLB against altitude for :math:`F^*` and the benchmark formations (Fig. 2).
+
+    The target sits at the origin (the CRLB is invariant to translation). The benchmarks
+    are those of :mod:`crlbswarm.formations`: ``fixed_polygon`` (radius ``fixed_radius``),
+    ``arc`` (span ``arc_span`` at :math:`r^*`), ``line`` (length :math:`2r^*` at distance
+    :math:`r^*`) and ``random_disc`` (radius ``disc_factor`` :math:`r^*`, mean over
+    ``n_random`` draws; the same draws, scaled, at every altitude).
+
+    Parameters
+    ----------
+    altitudes : array_like, shape (K,), default 10 m to 200 m in steps of 5 m
+        Flight altitudes, m (> 0).
+    n_uavs : int, default 6
+        Number of UAVs, at least 3.
+    radar : Radar, optional
+        Link parameters (scalar fields).
+    fixed_radius : float, default 5
+        Radius of the fixed-radius polygon, m. It equals :math:`F^*` at the altitude where
+        :math:`r^*(H)` equals it (about 7.1 m for 5 m).
+    arc_span : float, default pi/2
+        Angle covered by the arc, rad.
+    disc_factor : float, default 2
+        Radius of the random disc in units of :math:`r^*`.
+    n_random : int, default 200
+        Number of random formations per altitude.
+    seed : int, default 0
+        Seed of the random formations.
+
+    Returns
+    -------
+    AltitudeSweep
+        The data of Fig. 2.
+    """
+    h = _v.positive(altitudes, "altitudes")
+    if h.ndim != 1:
+        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
+    if radar.per_uav:
+        raise ValueError("radar: crlb_vs_altitude needs scalar radar fields")
+    _v.positive(disc_factor, "disc_factor")
+    origin = np.zeros(2)
+    r_star = optimal_radius(h, radar)
+    formations = {
+        "optimal": optimal_formation(n_uavs, origin, h, radar),
+        "fixed_polygon": fixed_radius_polygon(n_uavs, np.zeros((h.size, 2)), fixed_radius),
+        "arc": arc_formation(n_uavs, origin, r_star, span=arc_span),
+        "line": line_formation(n_uavs, origin, r_star, 2.0 * r_star),
+    }
+    values = {name: crlb(f, origin, h, radar) for name, f in formations.items()}
+    sem = {name: np.zeros_like(v) for name, v in values.items()}
+
+    rng = np.random.default_rng(seed)
+    draws = random_disc_formations(n_uavs, origin, disc_factor * r_star, n_random, rng)
+    random_crlb = crlb(draws, origin, h[:, None], radar)
+    values["random_disc"] = random_crlb.mean(axis=-1)
+    sem["random_disc"] = (
+        random_crlb.std(axis=-1, ddof=1) / np.sqrt(n_random) if n_random > 1 else np.zeros_like(h)
+    )
+    return AltitudeSweep(
+        altitude=h,
+        n_uavs=n_uavs,
+        bound=crlb_bound(n_uavs, h, radar),
+        crlb=values,
+        sem=sem,
+        parameters={
+            "fixed_radius_m": float(fixed_radius),
+            "arc_span_rad": float(arc_span),
+            "disc_factor": float(disc_factor),
+            "n_random": int(n_random),
+            "seed": int(seed),
+        },
+    )
+
+
+def optimal_elevation_curve(
+    altitudes: object = None, radar: Radar = _DEFAULT_RADAR
+) -> ElevationCurve:
+    """Optimal elevation :math:`\\phi^*` and radius :math:`r^*` over altitude (Sec. III).
+
+    Parameters
+    ----------
+    altitudes : array_like, shape (K,), optional
+        Flight altitudes, m; by default 241 log-spaced values from 1 m to 20 km.
+    radar : Radar, optional
+        Link parameters (scalar fields).
+
+    Returns
+    -------
+    ElevationCurve
+        Altitude, elevation (rad) and radius (m).
+    """
+    if altitudes is None:
+        altitudes = np.geomspace(1.0, 2.0e4, 241)
+    h = _v.positive(altitudes, "altitudes")
+    if h.ndim != 1:
+        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
+    if radar.per_uav:
+        raise ValueError("radar: optimal_elevation_curve needs scalar radar fields")
+    return ElevationCurve(
+        altitude=h,
+        elevation=optimal_elevation(h, radar),
+        radius=optimal_radius(h, radar),
+    )

@@ -1,0 +1,336 @@
+r"""Fisher information of the target position and the CRLB (paper Sec. III, eqs. (4)-(11)).
+
+The ranges are independent Gaussians whose mean *and* variance depend on the target
+position, so each range carries information through both (eqs. (5)-(6)):
+
+.. math::
+
+    [\mathbf J_d]_{mm} = \frac{1}{\sigma_m^2}
+        + \frac{1}{2\sigma_m^4}\Bigl(\frac{\partial \sigma_m^2}{\partial d_m}\Bigr)^2
+        = \frac{A_m}{d_m^4} + \frac{8}{d_m^2},
+    \qquad A_m = \frac{p_m G_p \beta_0}{\kappa \sigma_0^2}.
+
+The chain rule with the Jacobian :math:`\mathbf Q` of eq. (4), whose rows are the horizontal
+parts :math:`(\mathbf s - \mathbf q_m)^\top / d_m` of the unit line-of-sight vectors (the
+target's height is known), gives the :math:`2 \times 2` FIM of eq. (8),
+
+.. math::
+
+    \mathbf J_s = \mathbf Q^\top \mathbf J_d \mathbf Q
+        = \sum_m [\mathbf J_d]_{mm}
+          \frac{(\mathbf s - \mathbf q_m)(\mathbf s - \mathbf q_m)^\top}{d_m^2},
+
+whose entries are eq. (9). The CRLB (A-optimality) is :math:`\operatorname{tr}\mathbf J_s^{-1}`
+in m^2, eq. (10); the D- and E-optimality figures are :math:`\det \mathbf J_s^{-1}` (m^4) and
+:math:`\lambda_{\max}(\mathbf J_s^{-1})` (m^2).
+
+Singular geometry (fewer than two UAVs with a horizontal offset, or all UAVs collinear with
+the target's projection) gives ``+inf`` for every criterion, never NaN and never a warning.
+Not in the paper: :math:`\mathbf J_s` is treated as singular when
+:math:`\det \mathbf J_s \le 10^{-13} (\operatorname{tr} \mathbf J_s)^2`, i.e. when its
+condition number exceeds about :math:`10^{13}`; beyond that the computed determinant is
+dominated by rounding error and no finite value would be meaningful.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _validation as _v
+from .geometry import check_scene, target_offsets
+from .radar import Radar
+
+__all__ = [
+    "crlb",
+    "crlb_from_fim",
+    "d_optimality",
+    "d_optimality_from_fim",
+    "e_optimality",
+    "e_optimality_from_fim",
+    "fisher_information",
+    "range_information",
+]
+
+#: Relative threshold on det(J) / tr(J)^2 below which the FIM is treated as singular.
+SINGULAR_RTOL = 1e-13
+
+_DEFAULT_RADAR = Radar()
+
+
+def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+    r"""Fisher information of each range about itself, :math:`[\mathbf J_d]_{mm}`, eq. (6).
+
+    .. math:: [\mathbf J_d]_{mm} = \frac{A_m}{d_m^4} + \frac{8}{d_m^2}
+
+    The first term is the information in the mean (:math:`1/\sigma_m^2`); the second comes
+    from the range dependence of the variance, :math:`\sigma_m^2 \propto d_m^4`.
+
+    Parameters
+    ----------
+    distance : array_like, shape (..., M)
+        Slant ranges :math:`d_m > 0`, m.
+    radar : Radar, optional
+        Link parameters; per-UAV fields broadcast over the last axis.
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        Information per range, m^-2.
+    """
+    d = _v.positive(distance, "distance")
+    a = radar.snr_constant
+    _v.broadcast("radar", np.shape(a), d.shape)
+    d2 = d * d
+    return a / (d2 * d2) + 8.0 / d2
+
+
+def _check_radar(radar: Radar, n_uavs: int) -> np.ndarray | float:
+    if not isinstance(radar, Radar):
+        raise ValueError(f"radar: expected a crlbswarm.Radar, got {type(radar).__name__}")
+    if radar.n_uavs is not None and radar.n_uavs != n_uavs:
+        raise ValueError(
+            f"radar: per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
+        )
+    return radar.snr_constant
+
+
+def _fim_entries(
+    uav_xy: object, target_xy: object, altitude: object, radar: Radar
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)."""
+    q, s, h = check_scene(uav_xy, target_xy, altitude)
+    a = _check_radar(radar, q.shape[-2])
+    diff = target_offsets(q, s)
+    dx = diff[..., 0]
+    dy = diff[..., 1]
+    d2 = dx * dx + dy * dy + (h * h)[..., None]
+    # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
+    # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
+    g = (a / d2 + 8.0) / (d2 * d2)
+    gx = g * dx
+    jxx = np.sum(gx * dx, axis=-1)
+    jxy = np.sum(gx * dy, axis=-1)
+    jyy = np.sum(g * dy * dy, axis=-1)
+    return jxx, jyy, jxy
+
+
+def fisher_information(
+    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+) -> np.ndarray:
+    r"""Fisher information matrix of the target position, eqs. (8)-(9).
+
+    .. math::
+
+        \mathbf J_s = \sum_{m=1}^M w_m
+            \begin{bmatrix}\cos^2\theta_m & \sin\theta_m\cos\theta_m \\
+                           \sin\theta_m\cos\theta_m & \sin^2\theta_m\end{bmatrix},
+        \qquad w_m = [\mathbf J_d]_{mm} \cos^2\phi_m .
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m; broadcasts against the batch shape of ``uav_xy``.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m; broadcasts against the batch shape.
+    radar : Radar, optional
+        Link parameters (paper profile by default). Per-UAV fields must have length M.
+
+    Returns
+    -------
+    ndarray, shape (..., 2, 2)
+        The symmetric FIM, m^-2. The batch shape is the broadcast of ``uav_xy.shape[:-2]``,
+        ``target_xy.shape[:-1]`` and ``altitude.shape``.
+
+    Raises
+    ------
+    ValueError
+        On wrong shapes, NaN or inf positions, non-positive altitude, or a per-UAV radar
+        whose length differs from M. The message names the argument.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from crlbswarm import fisher_information, optimal_formation
+    >>> f = optimal_formation(6, (80.0, 90.0), 20.0)
+    >>> J = fisher_information(f, (80.0, 90.0), 20.0)
+    >>> bool(np.isclose(J[0, 0], J[1, 1]) and abs(J[0, 1]) < 1e-9 * J[0, 0])
+    True
+    """
+    jxx, jyy, jxy = _fim_entries(uav_xy, target_xy, altitude, radar)
+    return np.stack([np.stack([jxx, jxy], axis=-1), np.stack([jxy, jyy], axis=-1)], axis=-2)
+
+
+def _inverse_figures(
+    jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(trace, det, lambda_max, singular)`` of a batch of symmetric 2x2 matrices."""
+    tr = jxx + jyy
+    det = jxx * jyy - jxy * jxy
+    singular = ~(det > SINGULAR_RTOL * tr * tr)
+    lam_max = 0.5 * tr + np.hypot(0.5 * (jxx - jyy), jxy)
+    return tr, np.where(singular, 1.0, det), lam_max, singular
+
+
+def _a_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
+    tr, det, _, singular = _inverse_figures(jxx, jyy, jxy)
+    return np.where(singular, np.inf, tr / det)
+
+
+def _d_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
+    _, det, _, singular = _inverse_figures(jxx, jyy, jxy)
+    return np.where(singular, np.inf, 1.0 / det)
+
+
+def _e_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
+    # lambda_max(J^-1) = 1 / lambda_min(J) = lambda_max(J) / det(J): no cancellation.
+    _, det, lam_max, singular = _inverse_figures(jxx, jyy, jxy)
+    return np.where(singular, np.inf, lam_max / det)
+
+
+def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    j = _v.as_float_array(fim, "fim")
+    if j.ndim < 2 or j.shape[-2:] != (2, 2):
+        raise ValueError(f"fim: expected shape (..., 2, 2), got {j.shape}")
+    _v.check_finite(j, "fim")
+    return j[..., 0, 0], j[..., 1, 1], 0.5 * (j[..., 0, 1] + j[..., 1, 0])
+
+
+def crlb_from_fim(fim: object) -> np.ndarray:
+    r"""A-optimality figure :math:`\operatorname{tr}(\mathbf J^{-1})` of 2x2 FIMs, eq. (10).
+
+    Parameters
+    ----------
+    fim : array_like, shape (..., 2, 2)
+        Symmetric positive semi-definite information matrices.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The trace of the inverse; ``+inf`` where the matrix is singular.
+    """
+    return _a_criterion(*_fim_parts(fim))
+
+
+def d_optimality_from_fim(fim: object) -> np.ndarray:
+    r"""D-optimality figure :math:`\det(\mathbf J^{-1})` of 2x2 FIMs.
+
+    Parameters
+    ----------
+    fim : array_like, shape (..., 2, 2)
+        Symmetric positive semi-definite information matrices.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The determinant of the inverse; ``+inf`` where the matrix is singular.
+    """
+    return _d_criterion(*_fim_parts(fim))
+
+
+def e_optimality_from_fim(fim: object) -> np.ndarray:
+    r"""E-optimality figure :math:`\lambda_{\max}(\mathbf J^{-1})` of 2x2 FIMs.
+
+    Parameters
+    ----------
+    fim : array_like, shape (..., 2, 2)
+        Symmetric positive semi-definite information matrices.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The largest eigenvalue of the inverse; ``+inf`` where the matrix is singular.
+    """
+    return _e_criterion(*_fim_parts(fim))
+
+
+def crlb(
+    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+) -> np.ndarray:
+    r"""CRLB of the target position, :math:`\operatorname{tr}(\mathbf J_s^{-1})`, eq. (10), m^2.
+
+    A lower bound on the mean squared error :math:`E\lVert\hat{\mathbf s} - \mathbf s\rVert^2`
+    of any unbiased estimator. Its square root is the RMSE bound in metres.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m; broadcasts against the batch shape of ``uav_xy``.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m; broadcasts against the batch shape.
+    radar : Radar, optional
+        Link parameters (paper profile by default). Per-UAV fields must have length M.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        CRLB in m^2; ``+inf`` for singular geometry.
+
+    Raises
+    ------
+    ValueError
+        As :func:`fisher_information`.
+
+    Examples
+    --------
+    >>> from crlbswarm import crlb, optimal_formation
+    >>> f = optimal_formation(6, (80.0, 90.0), 20.0)
+    >>> round(float(crlb(f, (80.0, 90.0), 20.0)) * 1e3, 3)
+    5.35
+    """
+    return _a_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
+
+
+def d_optimality(
+    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+) -> np.ndarray:
+    r"""D-optimality figure :math:`\det(\mathbf J_s^{-1})`, m^4.
+
+    Proportional to the squared area of the error ellipse of an efficient estimator.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m.
+    radar : Radar, optional
+        Link parameters (paper profile by default).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        :math:`\det(\mathbf J_s^{-1})` in m^4; ``+inf`` for singular geometry.
+    """
+    return _d_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
+
+
+def e_optimality(
+    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+) -> np.ndarray:
+    r"""E-optimality figure :math:`\lambda_{\max}(\mathbf J_s^{-1})`, m^2.
+
+    The variance bound along the worst direction (the major axis of the error ellipse).
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m.
+    radar : Radar, optional
+        Link parameters (paper profile by default).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        :math:`\lambda_{\max}(\mathbf J_s^{-1})` in m^2; ``+inf`` for singular geometry.
+    """
+    return _e_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))

@@ -1,0 +1,144 @@
+r"""Geometry of UAVs at a common altitude over a ground target (paper Sec. II-III).
+
+UAV :math:`m` flies at horizontal position :math:`\mathbf q_m` and altitude :math:`H`; the
+target is the ground point :math:`\mathbf s`. Every function takes positions of shape
+``(..., M, 2)`` and a target of shape ``(..., 2)``; leading batch dimensions broadcast
+(NumPy rules), as does the altitude, of shape ``(...)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _validation as _v
+
+__all__ = ["azimuth_angles", "elevation_angles", "regular_polygon", "slant_ranges"]
+
+
+def check_scene(
+    uav_xy: object, target_xy: object, altitude: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validate a scene and return ``(q, s, h)`` as float arrays (not part of the API)."""
+    q = _v.positions(uav_xy, "uav_xy")
+    s = _v.point(target_xy, "target_xy")
+    h = _v.positive(altitude, "altitude")
+    batch = _v.broadcast("target_xy", q.shape[:-2], s.shape[:-1])
+    _v.broadcast("altitude", batch, h.shape)
+    return q, s, h
+
+
+def target_offsets(q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    r"""Horizontal offsets :math:`\mathbf s - \mathbf q_m`, shape ``(..., M, 2)`` (unchecked)."""
+    return s[..., None, :] - q
+
+
+def slant_ranges(uav_xy: object, target_xy: object, altitude: object) -> np.ndarray:
+    r"""Slant range from each UAV to the target, eq. (1).
+
+    .. math:: d_m = \sqrt{\lVert \mathbf q_m - \mathbf s \rVert^2 + H^2}
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m.
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        The ranges :math:`d_m`, m.
+    """
+    q, s, h = check_scene(uav_xy, target_xy, altitude)
+    diff = target_offsets(q, s)
+    return np.sqrt(np.sum(diff * diff, axis=-1) + (h * h)[..., None])
+
+
+def elevation_angles(uav_xy: object, target_xy: object, altitude: object) -> np.ndarray:
+    r"""Elevation :math:`\phi_m` of each UAV seen from the target, rad (Sec. III).
+
+    :math:`\sin\phi_m = H / d_m`; :math:`\phi_m \in (0, \pi/2]`, equal to :math:`\pi/2`
+    for a UAV straight above the target.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m.
+    altitude : float or array_like, shape (...)
+        Common flight altitude :math:`H > 0`, m.
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        Elevation angles, rad.
+    """
+    q, s, h = check_scene(uav_xy, target_xy, altitude)
+    diff = target_offsets(q, s)
+    return np.arctan2(h[..., None], np.hypot(diff[..., 0], diff[..., 1]))
+
+
+def azimuth_angles(uav_xy: object, target_xy: object) -> np.ndarray:
+    r"""Azimuth :math:`\theta_m` of the line from UAV :math:`m` to the target, rad, eq. (7).
+
+    Eq. (7) writes :math:`(x_s - x_m)/d_m = \cos\phi_m\cos\theta_m`, so :math:`\theta_m` is
+    the bearing *from the UAV to the target*, :math:`\operatorname{atan2}(y_s - y_m,
+    x_s - x_m)`, in :math:`(-\pi, \pi]`. The Fisher information depends only on
+    :math:`2\theta_m`, so the bearing from the target to the UAV (which differs by
+    :math:`\pi`) gives the same FIM. A UAV straight above the target gets azimuth 0.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        Horizontal target position, m.
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        Azimuth angles, rad.
+    """
+    q, s, _ = check_scene(uav_xy, target_xy, 1.0)
+    diff = target_offsets(q, s)
+    return np.arctan2(diff[..., 1], diff[..., 0])
+
+
+def regular_polygon(
+    n_uavs: int, center_xy: object, radius: object, rotation: float = 0.0
+) -> np.ndarray:
+    r"""Vertices of a regular polygon, the shape of the optimal formation (Sec. III).
+
+    Vertex :math:`m = 1, \dots, M` sits at azimuth
+    :math:`\theta_0 + 2\pi(m-1)/M` (measured from the centre, counter-clockwise from the
+    x-axis) and distance ``radius`` from ``center_xy``.
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of vertices :math:`M \ge 1`.
+    center_xy : array_like, shape (..., 2)
+        Centre, m.
+    radius : float or array_like, shape (...)
+        Circumradius, m (>= 0); broadcasts against the batch shape of ``center_xy``.
+    rotation : float, default 0
+        Azimuth :math:`\theta_0` of the first vertex, rad.
+
+    Returns
+    -------
+    ndarray, shape (..., M, 2)
+        The vertices, first vertex at azimuth ``rotation``.
+    """
+    n = _v.count(n_uavs, "n_uavs", 1)
+    c = _v.point(center_xy, "center_xy")
+    r = _v.finite(radius, "radius")
+    if np.any(r < 0):
+        raise ValueError(f"radius: must be >= 0, got {radius!r}")
+    theta0 = _v.scalar(rotation, "rotation")
+    _v.broadcast("radius", c.shape[:-1], r.shape)
+    theta = theta0 + 2.0 * np.pi * np.arange(n) / n
+    unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    return c[..., None, :] + r[..., None, None] * unit
