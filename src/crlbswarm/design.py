@@ -178,8 +178,8 @@ def crlb_bound(n_uavs: int, altitude: object, radar: Radar = _DEFAULT_RADAR) -> 
     Examples
     --------
     >>> from crlbswarm import crlb_bound
-    >>> round(float(crlb_bound(6, 20.0)) * 1e3, 3)
-    5.35
+    >>> round(float(crlb_bound(6, 20.0)) * 1e3, 4)
+    5.3476
     """
     return 4.0 / np.sum(_optimal_weights(n_uavs, altitude, radar), axis=-1)
 

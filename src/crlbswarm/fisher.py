@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validation as _v
-from .geometry import check_scene, target_offsets
+from .geometry import check_scene
 from .radar import Radar
 
 __all__ = [
@@ -100,17 +100,24 @@ def _fim_entries(
     """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)."""
     q, s, h = check_scene(uav_xy, target_xy, altitude)
     a = _check_radar(radar, q.shape[-2])
-    diff = target_offsets(q, s)
-    dx = diff[..., 0]
-    dy = diff[..., 1]
-    d2 = dx * dx + dy * dy + (h * h)[..., None]
+    # Contiguous per-axis offsets s - q_m, shape (..., M); the in-place updates below keep
+    # the number of full-size temporaries small (this is the hot path of every sweep).
+    dx = s[..., None, 0] - q[..., 0]
+    dy = s[..., None, 1] - q[..., 1]
+    d2 = dx * dx
+    d2 += dy * dy
+    d2 = d2 + (h * h)[..., None]  # not in place: the altitude may widen the batch shape
     # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
     # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
-    g = (a / d2 + 8.0) / (d2 * d2)
+    g = a / d2
+    g += 8.0
+    g /= d2
+    g /= d2
     gx = g * dx
-    jxx = np.sum(gx * dx, axis=-1)
-    jxy = np.sum(gx * dy, axis=-1)
-    jyy = np.sum(g * dy * dy, axis=-1)
+    jxx = np.einsum("...m,...m->...", gx, dx)
+    jxy = np.einsum("...m,...m->...", gx, dy)
+    g *= dy
+    jyy = np.einsum("...m,...m->...", g, dy)
     return jxx, jyy, jxy
 
 
@@ -278,8 +285,8 @@ def crlb(
     --------
     >>> from crlbswarm import crlb, optimal_formation
     >>> f = optimal_formation(6, (80.0, 90.0), 20.0)
-    >>> round(float(crlb(f, (80.0, 90.0), 20.0)) * 1e3, 3)
-    5.35
+    >>> round(float(crlb(f, (80.0, 90.0), 20.0)) * 1e3, 4)
+    5.3476
     """
     return _a_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
 

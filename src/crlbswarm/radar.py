@@ -52,12 +52,34 @@ _FIELDS = (
 
 
 def db_to_linear(value_db: float | np.ndarray) -> float | np.ndarray:
-    """Convert decibels to a linear power ratio, :math:`10^{x/10}`."""
+    """Convert decibels to a linear power ratio, :math:`10^{x/10}`.
+
+    Parameters
+    ----------
+    value_db : float or array_like
+        Value in dB.
+
+    Returns
+    -------
+    ndarray
+        The linear ratio.
+    """
     return 10.0 ** (np.asarray(value_db, dtype=float) / 10.0)
 
 
 def dbm_to_watts(value_dbm: float | np.ndarray) -> float | np.ndarray:
-    """Convert dBm to watts, :math:`10^{(x - 30)/10}`."""
+    """Convert dBm to watts, :math:`10^{(x - 30)/10}`.
+
+    Parameters
+    ----------
+    value_dbm : float or array_like
+        Power in dBm.
+
+    Returns
+    -------
+    ndarray
+        Power in W.
+    """
     return 10.0 ** ((np.asarray(value_dbm, dtype=float) - 30.0) / 10.0)
 
 
@@ -112,7 +134,7 @@ class Radar:
     >>> from crlbswarm import Radar
     >>> radar = Radar()
     >>> round(radar.snr_constant / 1e8, 4)
-    1.3464
+    1.3463
     >>> Radar(tx_power=[0.1, 0.2, 0.1]).per_uav
     True
     """

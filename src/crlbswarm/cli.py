@@ -1,0 +1,261 @@
+"""Command-line interface: ``crlbswarm design`` and ``crlbswarm figures``.
+
+Errors the user can cause (bad numbers, impossible parameters, an unwritable output folder)
+are printed as one line ``crlbswarm: error: <argument>: <reason>`` on stderr, without a
+traceback, and the command exits with status 2. Everything is computed before the first
+file is written, and every file is written atomically (:mod:`crlbswarm.output`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from . import __version__
+from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
+from .fisher import crlb
+from .radar import Radar, db_to_linear, dbm_to_watts
+
+__all__ = ["main"]
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """An error the user can fix; printed as one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line on stderr (no usage dump), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def _add_radar_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("radar (paper profile by default)")
+    group.add_argument("--power", type=float, default=0.1, metavar="W",
+                       help="transmit power per UAV p, W (default 0.1)")
+    group.add_argument("--noise-dbm", type=float, default=-90.0, metavar="DBM",
+                       help="receiver noise power sigma0^2, dBm (default -90)")
+    group.add_argument("--processing-gain-db", type=float, default=30.0, metavar="DB",
+                       help="processing gain G_p, dB (default 30)")
+    group.add_argument("--rcs", type=float, default=1.0, metavar="M2",
+                       help="radar cross section, m^2 (default 1)")
+    group.add_argument("--frequency", type=float, default=5.8e9, metavar="HZ",
+                       help="carrier frequency f_c, Hz (default 5.8e9)")
+    group.add_argument("--kappa", type=float, default=1.0,
+                       help="range-estimation constant kappa (default 1)")
+
+
+def _radar_from_args(args: argparse.Namespace) -> Radar:
+    return Radar(
+        tx_power=args.power,
+        noise_power=float(dbm_to_watts(args.noise_dbm)),
+        processing_gain=float(db_to_linear(args.processing_gain_db)),
+        rcs=args.rcs,
+        carrier_frequency=args.frequency,
+        kappa=args.kappa,
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``crlbswarm`` command."""
+    parser = _Parser(
+        prog="crlbswarm",
+        description="CRLB-optimal UAV formations for cooperative range sensing "
+        "(Wu et al., arXiv:2602.23990).",
+    )
+    parser.add_argument("--version", action="version", version=f"crlbswarm {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    design = sub.add_parser(
+        "design",
+        help="print the CRLB-optimal formation F* for a scene",
+        description="Closed-form CRLB-optimal formation (paper Sec. III): optimal elevation, "
+        "radius, positions, CRLB and the bound 4/sum(w).",
+    )
+    design.add_argument("--uavs", type=int, default=6, help="number of UAVs M >= 3 (default 6)")
+    design.add_argument("--altitude", type=float, default=20.0, metavar="H",
+                        help="flight altitude H, m (default 20)")
+    design.add_argument("--target", type=float, nargs=2, default=(0.0, 0.0),
+                        metavar=("X", "Y"), help="target position, m (default 0 0)")
+    design.add_argument("--rotation", type=float, default=0.0, metavar="DEG",
+                        help="azimuth of UAV 1 seen from the target, degrees (default 0)")
+    design.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    _add_radar_options(design)
+    design.set_defaults(func=_cmd_design)
+
+    figures = sub.add_parser(
+        "figures",
+        help="write the paper's figures and their data to a folder",
+        description="Write Fig. 2 (CRLB vs altitude), the optimal elevation vs altitude, "
+        "and the data behind each figure as CSV.",
+    )
+    figures.add_argument("--out", required=True, type=Path, metavar="DIR",
+                         help="output folder (created if missing)")
+    figures.add_argument("--format", default="png", choices=("png", "pdf", "svg"),
+                         help="image format (default png)")
+    figures.add_argument("--uavs", type=int, default=6,
+                         help="number of UAVs in Fig. 2 (default 6)")
+    figures.set_defaults(func=_cmd_figures)
+    return parser
+
+
+# -- design ------------------------------------------------------------------------------
+def design_report(
+    n_uavs: int, altitude: float, target_xy: Sequence[float], radar: Radar, rotation_deg: float
+) -> dict:
+    """The numbers printed by ``crlbswarm design``, as a JSON-ready dict.
+
+    Keys: ``n_uavs``, ``altitude_m``, ``target_m`` ([x, y]), ``rotation_deg``,
+    ``elevation_deg`` (phi*), ``radius_m`` (r*), ``positions_m`` (M x [x, y], UAV 1 first),
+    ``crlb_m2`` (tr J^-1 of F*), ``bound_m2`` (4/sum w*), ``rmse_bound_m`` (sqrt of the
+    CRLB), ``radar`` (the link parameters in linear SI units).
+    """
+    target = np.asarray(target_xy, dtype=float)
+    positions = optimal_formation(n_uavs, target, altitude, radar, np.radians(rotation_deg))
+    value = float(crlb(positions, target, altitude, radar))
+    return {
+        "n_uavs": n_uavs,
+        "altitude_m": float(altitude),
+        "target_m": target.tolist(),
+        "rotation_deg": float(rotation_deg),
+        "elevation_deg": float(np.degrees(optimal_elevation(altitude, radar))),
+        "radius_m": float(optimal_radius(altitude, radar)),
+        "positions_m": positions.tolist(),
+        "crlb_m2": value,
+        "bound_m2": float(crlb_bound(n_uavs, altitude, radar)),
+        "rmse_bound_m": float(np.sqrt(value)),
+        "radar": radar.to_dict(),
+    }
+
+
+def format_design(report: dict) -> str:
+    """Render :func:`design_report` as a readable table."""
+    x, y = report["target_m"]
+    lines = [
+        "CRLB-optimal formation F* (paper Sec. III)",
+        f"  UAVs M               {report['n_uavs']}",
+        f"  altitude H           {report['altitude_m']:g} m",
+        f"  target s             ({x:g}, {y:g}) m",
+        f"  optimal elevation    {report['elevation_deg']:.4f} deg",
+        f"  radius r*            {report['radius_m']:.4f} m",
+        f"  CRLB tr(J^-1)        {report['crlb_m2']:.6e} m^2"
+        f"   (RMSE bound {100 * report['rmse_bound_m']:.3f} cm)",
+        f"  bound 4/sum(w)       {report['bound_m2']:.6e} m^2   (eq. 11)",
+        "  positions (m):",
+        "     UAV           x           y",
+    ]
+    for i, (px, py) in enumerate(report["positions_m"], start=1):
+        lines.append(f"    {i:4d}  {px:10.4f}  {py:10.4f}")
+    return "\n".join(lines)
+
+
+#: Library argument names and the CLI options that set them, for error messages.
+_OPTION_NAMES = {
+    "n_uavs": "--uavs",
+    "altitude": "--altitude",
+    "target_xy": "--target",
+    "rotation": "--rotation",
+    "radar.tx_power": "--power",
+    "radar.noise_power": "--noise-dbm",
+    "radar.processing_gain": "--processing-gain-db",
+    "radar.rcs": "--rcs",
+    "radar.carrier_frequency": "--frequency",
+    "radar.kappa": "--kappa",
+}
+
+
+def _as_option_error(exc: ValueError) -> UsageError:
+    """Rename the library argument at the start of ``exc``'s message to its CLI option."""
+    message = str(exc)
+    name, sep, reason = message.partition(":")
+    if sep and name in _OPTION_NAMES:
+        message = f"{_OPTION_NAMES[name]}:{reason}"
+    return UsageError(message)
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    try:
+        report = design_report(
+            args.uavs, args.altitude, args.target, _radar_from_args(args), args.rotation
+        )
+    except ValueError as exc:
+        raise _as_option_error(exc) from exc
+    print(json.dumps(report, indent=2) if args.json else format_design(report))
+    return 0
+
+
+# -- figures -----------------------------------------------------------------------------
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from .experiments import crlb_vs_altitude, optimal_elevation_curve
+    from .output import save_figure, write_csv, write_json
+    from .plots import plot_crlb_vs_altitude, plot_optimal_elevation
+
+    # Compute everything first: a failure leaves the output folder untouched.
+    try:
+        sweep = crlb_vs_altitude(n_uavs=args.uavs)
+    except ValueError as exc:
+        raise _as_option_error(exc) from exc
+    curve = optimal_elevation_curve()
+    figures = {
+        "fig2_crlb_vs_altitude": (plot_crlb_vs_altitude(sweep), sweep.columns()),
+        "optimal_elevation": (plot_optimal_elevation(curve), curve.columns()),
+    }
+    manifest = {
+        "crlbswarm_version": __version__,
+        "radar": Radar().to_dict(),
+        "fig2_crlb_vs_altitude": {
+            "what": "CRLB tr(J^-1) in m^2 vs altitude for F* and the benchmark formations",
+            "n_uavs": sweep.n_uavs,
+            "benchmark_parameters": sweep.parameters,
+        },
+        "optimal_elevation": {"what": "optimal elevation (deg) and radius (m) vs altitude"},
+        "files": [],
+    }
+    out = args.out
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out: cannot create folder {str(out)!r}: {exc.strerror}") from exc
+    for stem, (fig, columns) in figures.items():
+        for path in (out / f"{stem}.csv", out / f"{stem}.{args.format}"):
+            if path.suffix == ".csv":
+                write_csv(path, columns)
+            else:
+                save_figure(fig, path)
+            manifest["files"].append(path.name)
+            print(f"wrote {path}")
+    write_json(out / "manifest.json", manifest)
+    print(f"wrote {out / 'manifest.json'}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``crlbswarm`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, UsageError) as exc:
+        print(f"crlbswarm: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except BrokenPipeError:
+        # The reader (e.g. ``| head``) went away: not an error of ours; silence the flush.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:
+        print(f"crlbswarm: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

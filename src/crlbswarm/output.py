@@ -1,0 +1,127 @@
+"""Writing results to files, atomically.
+
+Every writer first writes a temporary file in the destination folder and then renames it
+over the destination (:func:`os.replace`, atomic on POSIX and Windows), so an interrupted
+run never leaves a half-written file: the destination holds either the old content or the
+new one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import os
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+__all__ = ["atomic_path", "save_figure", "write_csv", "write_json", "write_text"]
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it to ``path`` if the block succeeds.
+
+    The temporary file keeps the destination's suffix (so writers that infer the format
+    from it still work) and is removed if the block raises.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Final destination. Its folder must exist.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary path to write.
+    """
+    dest = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.chmod(tmp_path, 0o644)  # mkstemp makes 0600; results are meant to be shared
+        os.replace(tmp_path, dest)
+    except BaseException:
+        tmp_path.unlink(missing_ok=True)
+        raise
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Destination file.
+    text : str
+        Content.
+    """
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _csv_text(columns: Mapping[str, Any]) -> str:
+    names = list(columns)
+    arrays = [np.asarray(columns[name]) for name in names]
+    lengths = {a.shape[0] for a in arrays}
+    if len(lengths) != 1 or any(a.ndim != 1 for a in arrays):
+        raise ValueError("columns: every column must be 1-D and of the same length")
+    buf: IO[str] = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
+    for row in zip(*arrays, strict=True):
+        writer.writerow([repr(float(x)) if np.issubdtype(type(x), np.floating) else x for x in row])
+    return buf.getvalue()
+
+
+def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
+    """Write equal-length 1-D columns as CSV atomically: one header row, then the values.
+
+    Floats are written with ``repr`` (shortest round-trip form), so reading the file back
+    gives the same numbers bit for bit.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Destination file.
+    columns : mapping of str to 1-D array_like
+        Column name to values, in order.
+    """
+    write_text(path, _csv_text(columns))
+
+
+def write_json(path: str | os.PathLike[str], data: Any) -> None:
+    """Write ``data`` as indented JSON atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Destination file.
+    data : object
+        JSON-serialisable data.
+    """
+    write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> None:
+    """Save a Matplotlib figure atomically; the format follows the file suffix.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or path-like
+        Destination file (``.png``, ``.pdf``, ``.svg``, ...).
+    dpi : int, default 150
+        Resolution of raster formats.
+    """
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi)
