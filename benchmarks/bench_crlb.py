@@ -72,8 +72,10 @@ def main() -> None:
     t = best_of(lambda: cs.crlb_bound(6, altitudes), args.repeat)
     rows.append((f"`crlb_bound`, {args.n:.0e} altitudes", t, args.n / t))
 
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}, NumPy {np.__version__}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, NumPy {np.__version__}"
+    )
     print()
     print("| computation | best time (s) | per second |")
     print("|---|---:|---:|")

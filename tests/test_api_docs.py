@@ -49,8 +49,9 @@ def _documented_parameters(doc: str) -> set[str]:
     """Names listed in the numpydoc ``Parameters`` (or ``Attributes``) section."""
     names: set[str] = set()
     for section in ("Parameters", "Attributes"):
-        match = re.search(rf"^\s*{section}\n\s*-+\n(.*?)(?:\n\s*\n\s*\w[\w ]*\n\s*-+\n|\Z)",
-                          doc, re.S | re.M)
+        match = re.search(
+            rf"^\s*{section}\n\s*-+\n(.*?)(?:\n\s*\n\s*\w[\w ]*\n\s*-+\n|\Z)", doc, re.S | re.M
+        )
         if match:
             for line in match.group(1).splitlines():
                 m = re.match(r"^\s{0,8}(\w+)\s*:", line)
@@ -81,7 +82,8 @@ def test_public_parameters_documented(qualname, obj):
     except (TypeError, ValueError):  # pragma: no cover - builtins
         return
     wanted = {
-        p for p, spec in params.items()
+        p
+        for p, spec in params.items()
         if p not in ("self", "cls") and spec.kind not in (spec.VAR_POSITIONAL, spec.VAR_KEYWORD)
     }
     if inspect.isclass(obj) and obj.__init__ is object.__init__:

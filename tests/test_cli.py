@@ -20,8 +20,9 @@ def run(capsys, *argv):
 
 
 def test_design_table(capsys):
-    status, out, err = run(capsys, "design", "--uavs", "6", "--altitude", "20",
-                           "--target", "80", "90")
+    status, out, err = run(
+        capsys, "design", "--uavs", "6", "--altitude", "20", "--target", "80", "90"
+    )
     assert status == 0
     assert err == ""
     assert "54.7354 deg" in out
@@ -30,16 +31,41 @@ def test_design_table(capsys):
 
 
 def test_design_json_keys_and_values(capsys):
-    status, out, _ = run(capsys, "design", "--uavs", "5", "--altitude", "50",
-                         "--target", "1", "-2", "--rotation", "30", "--json")
+    status, out, _ = run(
+        capsys,
+        "design",
+        "--uavs",
+        "5",
+        "--altitude",
+        "50",
+        "--target",
+        "1",
+        "-2",
+        "--rotation",
+        "30",
+        "--json",
+    )
     assert status == 0
     data = json.loads(out)
-    assert set(data) == {"n_uavs", "altitude_m", "target_m", "rotation_deg", "elevation_deg",
-                         "radius_m", "positions_m", "crlb_m2", "bound_m2", "rmse_bound_m",
-                         "radar"}
+    assert set(data) == {
+        "n_uavs",
+        "altitude_m",
+        "target_m",
+        "rotation_deg",
+        "elevation_deg",
+        "radius_m",
+        "positions_m",
+        "crlb_m2",
+        "bound_m2",
+        "rmse_bound_m",
+        "radar",
+    }
     np.testing.assert_allclose(
-        data["positions_m"], optimal_formation(5, (1, -2), 50.0, rotation=np.radians(30)),
-        rtol=0, atol=1e-12)
+        data["positions_m"],
+        optimal_formation(5, (1, -2), 50.0, rotation=np.radians(30)),
+        rtol=0,
+        atol=1e-12,
+    )
     assert data["elevation_deg"] == pytest.approx(float(np.degrees(optimal_elevation(50.0))))
     assert data["bound_m2"] == pytest.approx(float(crlb_bound(5, 50.0)), rel=1e-14)
     assert data["crlb_m2"] == pytest.approx(data["bound_m2"], rel=1e-12)
@@ -91,11 +117,16 @@ def test_missing_command_is_an_error(capsys):
 
 def test_figures_writes_everything(tmp_path, capsys):
     out = tmp_path / "figs"
-    status, stdout, err = run(capsys, "figures", "--out", str(out))
+    status, _, err = run(capsys, "figures", "--out", str(out))
     assert status == 0, err
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["fig2_crlb_vs_altitude.csv", "fig2_crlb_vs_altitude.png",
-                     "manifest.json", "optimal_elevation.csv", "optimal_elevation.png"]
+    assert names == [
+        "fig2_crlb_vs_altitude.csv",
+        "fig2_crlb_vs_altitude.png",
+        "manifest.json",
+        "optimal_elevation.csv",
+        "optimal_elevation.png",
+    ]
     manifest = json.loads((out / "manifest.json").read_text())
     assert sorted(manifest["files"]) == [n for n in names if n != "manifest.json"]
     assert manifest["fig2_crlb_vs_altitude"]["benchmark_parameters"]["seed"] == 0
@@ -121,7 +152,7 @@ def test_figures_in_pdf(tmp_path, capsys):
 def test_figures_unwritable_out_is_one_line_error(tmp_path, capsys):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
-    status, out, err = run(capsys, "figures", "--out", str(blocker / "sub"))
+    status, _, err = run(capsys, "figures", "--out", str(blocker / "sub"))
     assert status == 2
     assert err.count("\n") == 1
     assert "--out" in err
@@ -130,8 +161,12 @@ def test_figures_unwritable_out_is_one_line_error(tmp_path, capsys):
 
 def test_console_script_entry_point():
     """The installed module runs as a program and exits 2 on a bad value."""
-    proc = subprocess.run([sys.executable, "-m", "crlbswarm.cli", "design", "--uavs", "1"],
-                          capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-m", "crlbswarm.cli", "design", "--uavs", "1"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
     assert "--uavs" in proc.stderr

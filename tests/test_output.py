@@ -11,9 +11,14 @@ from crlbswarm.output import atomic_path, write_csv, write_json
 def test_failed_write_leaves_old_content_and_no_temporary(tmp_path):
     dest = tmp_path / "result.csv"
     dest.write_text("old")
-    with pytest.raises(RuntimeError), atomic_path(dest) as tmp:
-        tmp.write_text("half")
-        raise RuntimeError("interrupted")
+
+    def interrupted_write():
+        with atomic_path(dest) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("interrupted")
+
+    with pytest.raises(RuntimeError):
+        interrupted_write()
     assert dest.read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["result.csv"]
 
@@ -28,7 +33,7 @@ def test_csv_round_trips_floats_exactly(tmp_path):
 
 
 def test_csv_rejects_ragged_columns(tmp_path):
-    with pytest.raises(ValueError, match="^columns"):
+    with pytest.raises(ValueError, match=r"^columns"):
         write_csv(tmp_path / "x.csv", {"a": [1.0, 2.0], "b": [1.0]})
     assert not list(tmp_path.iterdir())
 

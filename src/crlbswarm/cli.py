@@ -41,18 +41,40 @@ class _Parser(argparse.ArgumentParser):
 
 def _add_radar_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("radar (paper profile by default)")
-    group.add_argument("--power", type=float, default=0.1, metavar="W",
-                       help="transmit power per UAV p, W (default 0.1)")
-    group.add_argument("--noise-dbm", type=float, default=-90.0, metavar="DBM",
-                       help="receiver noise power sigma0^2, dBm (default -90)")
-    group.add_argument("--processing-gain-db", type=float, default=30.0, metavar="DB",
-                       help="processing gain G_p, dB (default 30)")
-    group.add_argument("--rcs", type=float, default=1.0, metavar="M2",
-                       help="radar cross section, m^2 (default 1)")
-    group.add_argument("--frequency", type=float, default=5.8e9, metavar="HZ",
-                       help="carrier frequency f_c, Hz (default 5.8e9)")
-    group.add_argument("--kappa", type=float, default=1.0,
-                       help="range-estimation constant kappa (default 1)")
+    group.add_argument(
+        "--power",
+        type=float,
+        default=0.1,
+        metavar="W",
+        help="transmit power per UAV p, W (default 0.1)",
+    )
+    group.add_argument(
+        "--noise-dbm",
+        type=float,
+        default=-90.0,
+        metavar="DBM",
+        help="receiver noise power sigma0^2, dBm (default -90)",
+    )
+    group.add_argument(
+        "--processing-gain-db",
+        type=float,
+        default=30.0,
+        metavar="DB",
+        help="processing gain G_p, dB (default 30)",
+    )
+    group.add_argument(
+        "--rcs", type=float, default=1.0, metavar="M2", help="radar cross section, m^2 (default 1)"
+    )
+    group.add_argument(
+        "--frequency",
+        type=float,
+        default=5.8e9,
+        metavar="HZ",
+        help="carrier frequency f_c, Hz (default 5.8e9)",
+    )
+    group.add_argument(
+        "--kappa", type=float, default=1.0, help="range-estimation constant kappa (default 1)"
+    )
 
 
 def _radar_from_args(args: argparse.Namespace) -> Radar:
@@ -83,12 +105,28 @@ def build_parser() -> argparse.ArgumentParser:
         "radius, positions, CRLB and the bound 4/sum(w).",
     )
     design.add_argument("--uavs", type=int, default=6, help="number of UAVs M >= 3 (default 6)")
-    design.add_argument("--altitude", type=float, default=20.0, metavar="H",
-                        help="flight altitude H, m (default 20)")
-    design.add_argument("--target", type=float, nargs=2, default=(0.0, 0.0),
-                        metavar=("X", "Y"), help="target position, m (default 0 0)")
-    design.add_argument("--rotation", type=float, default=0.0, metavar="DEG",
-                        help="azimuth of UAV 1 seen from the target, degrees (default 0)")
+    design.add_argument(
+        "--altitude",
+        type=float,
+        default=20.0,
+        metavar="H",
+        help="flight altitude H, m (default 20)",
+    )
+    design.add_argument(
+        "--target",
+        type=float,
+        nargs=2,
+        default=(0.0, 0.0),
+        metavar=("X", "Y"),
+        help="target position, m (default 0 0)",
+    )
+    design.add_argument(
+        "--rotation",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="azimuth of UAV 1 seen from the target, degrees (default 0)",
+    )
     design.add_argument("--json", action="store_true", help="print JSON instead of a table")
     _add_radar_options(design)
     design.set_defaults(func=_cmd_design)
@@ -99,12 +137,15 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write Fig. 2 (CRLB vs altitude), the optimal elevation vs altitude, "
         "and the data behind each figure as CSV.",
     )
-    figures.add_argument("--out", required=True, type=Path, metavar="DIR",
-                         help="output folder (created if missing)")
-    figures.add_argument("--format", default="png", choices=("png", "pdf", "svg"),
-                         help="image format (default png)")
-    figures.add_argument("--uavs", type=int, default=6,
-                         help="number of UAVs in Fig. 2 (default 6)")
+    figures.add_argument(
+        "--out", required=True, type=Path, metavar="DIR", help="output folder (created if missing)"
+    )
+    figures.add_argument(
+        "--format", default="png", choices=("png", "pdf", "svg"), help="image format (default png)"
+    )
+    figures.add_argument(
+        "--uavs", type=int, default=6, help="number of UAVs in Fig. 2 (default 6)"
+    )
     figures.set_defaults(func=_cmd_figures)
     return parser
 

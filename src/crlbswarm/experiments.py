@@ -75,7 +75,7 @@ class AltitudeSweep:
     parameters: dict[str, float]
 
     def columns(self) -> dict[str, np.ndarray]:
-        """Flat columns for a CSV file: altitude, bound, then ``crlb_<name>`` and ``sem_<name>``."""
+        """Flat CSV columns: altitude, bound, then ``crlb_<name>`` and ``sem_<name>``."""
         cols = {"altitude_m": self.altitude, "bound_m2": self.bound}
         for name, values in self.crlb.items():
             cols[f"crlb_{name}_m2"] = values

@@ -148,9 +148,7 @@ def line_formation(
     along = np.array([-np.sin(psi), np.cos(psi)])
     t = np.arange(n) / (n - 1) - 0.5
     return (
-        s[..., None, :]
-        + off[..., None, None] * normal
-        + (size[..., None] * t)[..., None] * along
+        s[..., None, :] + off[..., None, None] * normal + (size[..., None] * t)[..., None] * along
     )
 
 

@@ -78,7 +78,9 @@ def _csv_text(columns: Mapping[str, Any]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
     for row in zip(*arrays, strict=True):
-        writer.writerow([repr(float(x)) if np.issubdtype(type(x), np.floating) else x for x in row])
+        writer.writerow(
+            [repr(float(x)) if np.issubdtype(type(x), np.floating) else x for x in row]
+        )
     return buf.getvalue()
 
 

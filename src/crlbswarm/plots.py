@@ -64,8 +64,14 @@ def plot_crlb_vs_altitude(
                 continue
             axis.plot(h, values / scale, label=label, **style)
             if sem is not None and np.any(sem):
-                axis.fill_between(h, (values - 2 * sem) / scale, (values + 2 * sem) / scale,
-                                  color=style.get("color"), alpha=0.2, lw=0)
+                axis.fill_between(
+                    h,
+                    (values - 2 * sem) / scale,
+                    (values + 2 * sem) / scale,
+                    color=style.get("color"),
+                    alpha=0.2,
+                    lw=0,
+                )
     ax.plot(h, sweep.bound, "k--", lw=1.0, label=r"bound $4/\sum_m w_m^*$, eq. (11)")
     ax.set_yscale("log")
     ax.set_ylabel(r"CRLB tr$(\mathbf{J}_s^{-1})$ (m$^2$)")
@@ -103,8 +109,9 @@ def plot_optimal_elevation(curve: ElevationCurve, ax: Axes | None = None) -> Fig
     fig = ax.figure
     ax.plot(curve.altitude, np.degrees(curve.elevation), color="C3", lw=2, label=r"$\phi^*(H)$")
     upper = np.degrees(np.arctan(np.sqrt(2.0)))
-    ax.axhline(upper, color="0.3", ls="--", lw=1,
-               label=rf"$\arctan\sqrt{{2}}$ = {upper:.2f}° ($H \to 0$)")
+    ax.axhline(
+        upper, color="0.3", ls="--", lw=1, label=rf"$\arctan\sqrt{{2}}$ = {upper:.2f}° ($H \to 0$)"
+    )
     ax.axhline(45.0, color="0.3", ls=":", lw=1, label=r"45° ($H \to \infty$)")
     ax.set_xscale("log")
     ax.set_xlabel("flight altitude H (m)")

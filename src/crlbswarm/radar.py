@@ -88,7 +88,9 @@ def _field_value(value: object, name: str) -> float | np.ndarray:
     if arr.ndim == 0:
         return float(arr)
     if arr.ndim != 1:
-        raise ValueError(f"radar.{name}: expected a number or a 1-D per-UAV array, got {arr.shape}")
+        raise ValueError(
+            f"radar.{name}: expected a number or a 1-D per-UAV array, got {arr.shape}"
+        )
     arr = arr.copy()
     arr.flags.writeable = False
     return arr
@@ -158,7 +160,8 @@ class Radar:
                 lengths.add(value.shape[0])
         if len(lengths) > 1:
             raise ValueError(
-                f"radar: per-UAV fields must all have the same length, got lengths {sorted(lengths)}"
+                "radar: per-UAV fields must all have the same length, "
+                f"got lengths {sorted(lengths)}"
             )
         a = self.tx_power * self.processing_gain * self.beta0 / (self.kappa * self.noise_power)
         a = float(a) if np.ndim(a) == 0 else _readonly(a)
@@ -249,7 +252,7 @@ class Radar:
 
     @property
     def beta0(self) -> float | np.ndarray:
-        r"""Two-way channel power at unit distance, :math:`\beta_0` of Sec. II, m^4 (m^2 RCS x m^2)."""
+        r"""Two-way channel gain at unit distance, :math:`\beta_0` of Sec. II, m^4."""
         return self.tx_gain * self.rx_gain * self.rcs * self.wavelength**2 / (4.0 * math.pi) ** 3
 
     @property
@@ -295,9 +298,7 @@ class Radar:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Radar):
             return NotImplemented
-        return all(
-            np.array_equal(getattr(self, name), getattr(other, name)) for name in _FIELDS
-        )
+        return all(np.array_equal(getattr(self, name), getattr(other, name)) for name in _FIELDS)
 
     def __hash__(self) -> int:
         return hash(tuple(tuple(np.ravel(getattr(self, name)).tolist()) for name in _FIELDS))
