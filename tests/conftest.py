@@ -32,7 +32,7 @@ from hypothesis import settings
 from numpy.polynomial.hermite_e import hermegauss
 from scipy.optimize import brentq
 
-settings.register_profile("ci", deadline=None, derandomize=True, max_examples=50, database=None)
+settings.register_profile("ci", deadline=None, derandomize=True, max_examples=100, database=None)
 settings.register_profile("thorough", deadline=None, max_examples=1000)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 

@@ -88,9 +88,15 @@ def _tan2_optimal(altitude: object, radar: Radar) -> tuple[np.ndarray, np.ndarra
     h = _v.positive(altitude, "altitude")
     a = radar.snr_constant
     _v.broadcast("radar", np.shape(a), h.shape)
-    b = 8.0 * h * h / a
-    # sqrt(1 + b + b^2) = hypot(b + 1/2, sqrt(3)/2): no overflow for huge b.
-    return (1.0 + np.hypot(b + 0.5, 0.5 * np.sqrt(3.0))) / (1.0 + b), h
+    # t* = (1 + sqrt(1 + b + b^2)) / (1 + b) with b = 8H^2/A, or the same with c = 1/b,
+    # t* = (c + sqrt(c^2 + c + 1)) / (c + 1): evaluate the form whose variable is <= 1, and
+    # sqrt(x^2 + x + 1) as hypot(x + 1/2, sqrt(3)/2), so no altitude overflows.
+    with np.errstate(over="ignore"):  # an absurd altitude gives ratio = inf, handled below
+        ratio = 8.0 * (h / np.sqrt(a)) ** 2
+    small = ratio <= 1.0
+    x = np.where(small, ratio, 1.0 / np.where(small, 1.0, ratio))
+    root = np.hypot(x + 0.5, 0.5 * np.sqrt(3.0))
+    return np.where(small, (1.0 + root) / (1.0 + x), (x + root) / (x + 1.0)), h
 
 
 def optimal_elevation(altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
@@ -242,5 +248,7 @@ def optimal_formation(
                 "the regular polygon is optimal only for equal A"
             )
         radar = Radar(**{k: float(np.ravel(v)[0]) for k, v in radar.to_dict().items()})
+    target = _v.point(target_xy, "target_xy")
     radius = optimal_radius(altitude, radar)
-    return regular_polygon(n, _v.point(target_xy, "target_xy"), radius, rotation)
+    _v.broadcast("altitude", target.shape[:-1], radius.shape)
+    return regular_polygon(n, target, radius, rotation)

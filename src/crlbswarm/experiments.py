@@ -162,6 +162,13 @@ def crlb_vs_altitude(
     if radar.per_uav:
         raise ValueError("radar: crlb_vs_altitude needs scalar radar fields")
     _v.positive(disc_factor, "disc_factor")
+    _v.positive(fixed_radius, "fixed_radius")
+    span = _v.scalar(arc_span, "arc_span")
+    if not 0.0 < span <= np.pi:
+        raise ValueError(f"arc_span: must lie in (0, pi], got {arc_span!r}")
+    _v.count(n_random, "n_random", 1)
+    _v.count(seed, "seed", 0)
+    h = h.copy()  # the result must not share memory with the caller's array
     origin = np.zeros(2)
     r_star = optimal_radius(h, radar)
     formations = {
@@ -220,6 +227,7 @@ def optimal_elevation_curve(
         raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
     if radar.per_uav:
         raise ValueError("radar: optimal_elevation_curve needs scalar radar fields")
+    h = h.copy()  # the result must not share memory with the caller's array
     return ElevationCurve(
         altitude=h,
         elevation=optimal_elevation(h, radar),

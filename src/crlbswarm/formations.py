@@ -143,7 +143,8 @@ def line_formation(
     off = _v.positive(offset, "offset")
     size = _v.positive(length, "length")
     psi = _v.scalar(heading, "heading")
-    _v.broadcast("length", s.shape[:-1], off.shape, size.shape)
+    batch = _v.broadcast("offset", s.shape[:-1], off.shape)
+    _v.broadcast("length", batch, size.shape)
     normal = np.array([np.cos(psi), np.sin(psi)])
     along = np.array([-np.sin(psi), np.cos(psi)])
     t = np.arange(n) / (n - 1) - 0.5

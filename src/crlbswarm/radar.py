@@ -87,9 +87,10 @@ def _field_value(value: object, name: str) -> float | np.ndarray:
     arr = _v.positive(value, f"radar.{name}")
     if arr.ndim == 0:
         return float(arr)
-    if arr.ndim != 1:
+    if arr.ndim != 1 or arr.shape[0] == 0:
         raise ValueError(
-            f"radar.{name}: expected a number or a 1-D per-UAV array, got {arr.shape}"
+            f"radar.{name}: expected a number or a non-empty 1-D per-UAV array, "
+            f"got shape {arr.shape}"
         )
     arr = arr.copy()
     arr.flags.writeable = False
@@ -124,7 +125,8 @@ class Radar:
     carrier_frequency : float or array_like, default 5.8e9
         Carrier frequency :math:`f_c`, Hz.
     kappa : float or array_like, default 1
-        Range-estimation constant :math:`\kappa` (dimensionless, depends on the waveform).
+        Range-estimation constant :math:`\kappa`: the range variance at unit SNR, which
+        depends on the waveform and the estimator (m^2; the paper leaves it unnamed).
 
     Raises
     ------
@@ -257,11 +259,12 @@ class Radar:
 
     @property
     def snr_constant(self) -> float | np.ndarray:
-        r"""The constant :math:`A = p G_p \beta_0 / (\kappa \sigma_0^2)`, m^4.
+        r"""The constant :math:`A = p G_p \beta_0 / (\kappa \sigma_0^2)`.
 
-        The SNR at range :math:`d` is :math:`A / (\kappa d^4)` and the range variance is
+        The SNR at range :math:`d` is :math:`\kappa A / d^4` and the range variance is
         :math:`d^4 / A` (Sec. II). With the paper profile :math:`A \approx 1.3463 \times 10^8`
-        m^4.
+        (PAPER_NOTES quotes it in m^4, treating :math:`\kappa` as a pure number; with
+        :math:`\kappa` in m^2, :math:`A` is in m^2 and :math:`\sigma_m^2` in m^2).
         """
         return self._snr_constant
 
