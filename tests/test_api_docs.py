@@ -26,6 +26,10 @@ MODULES = [
     "crlbswarm.experiments",
     "crlbswarm.plots",
     "crlbswarm.output",
+    "crlbswarm.graphs",
+    "crlbswarm.control",
+    "crlbswarm.scenario",
+    "crlbswarm.simulation",
 ]
 
 

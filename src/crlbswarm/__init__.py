@@ -7,6 +7,17 @@ Positions are horizontal coordinates in metres, shape ``(..., M, 2)`` (UAVs are 
 every function accepts any leading batch shape. Angles are radians inside the library.
 """
 
+from .control import (
+    Obstacles,
+    consensus_step,
+    eta_target,
+    eta_update,
+    formation_cost,
+    formation_input,
+    leader_guidance,
+    obstacle_clearance,
+    repulsion,
+)
 from .design import (
     crlb_bound,
     information_weight,
@@ -38,18 +49,38 @@ from .formations import (
     random_disc_formations,
 )
 from .geometry import azimuth_angles, elevation_angles, regular_polygon, slant_ranges
+from .graphs import (
+    GRAPH_KINDS,
+    Adjacency,
+    communication_graph,
+    consensus_step_limit,
+    formation_step_limit,
+)
 from .radar import SPEED_OF_LIGHT, Radar, db_to_linear, dbm_to_watts
+from .scenario import BUILTIN_SCENARIOS, Scenario, ScenarioError, load_scenario
+from .simulation import MissionResult, SimulationDivergedError, simulate, start_positions
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "BUILTIN_SCENARIOS",
     "FORMATION_LABELS",
+    "GRAPH_KINDS",
     "SPEED_OF_LIGHT",
+    "Adjacency",
     "AltitudeSweep",
     "ElevationCurve",
+    "MissionResult",
+    "Obstacles",
     "Radar",
+    "Scenario",
+    "ScenarioError",
+    "SimulationDivergedError",
     "arc_formation",
     "azimuth_angles",
+    "communication_graph",
+    "consensus_step",
+    "consensus_step_limit",
     "crlb",
     "crlb_bound",
     "crlb_from_fim",
@@ -61,10 +92,18 @@ __all__ = [
     "e_optimality",
     "e_optimality_from_fim",
     "elevation_angles",
+    "eta_target",
+    "eta_update",
     "fisher_information",
     "fixed_radius_polygon",
+    "formation_cost",
+    "formation_input",
+    "formation_step_limit",
     "information_weight",
+    "leader_guidance",
     "line_formation",
+    "load_scenario",
+    "obstacle_clearance",
     "optimal_elevation",
     "optimal_elevation_curve",
     "optimal_formation",
@@ -72,5 +111,8 @@ __all__ = [
     "random_disc_formations",
     "range_information",
     "regular_polygon",
+    "repulsion",
+    "simulate",
     "slant_ranges",
+    "start_positions",
 ]

@@ -1,0 +1,234 @@
+r"""Communication graphs of the formation (paper Sec. IV) and their stability bounds.
+
+The formation exchanges information over an undirected graph
+:math:`\mathcal G_f = (\mathcal M, \mathcal E, \mathcal A)` with binary adjacency
+:math:`a_{mp}`. Graphs are built with networkx and handed to the simulator as CSR adjacency
+arrays (:class:`Adjacency`), so that memory and work grow with the number of edges, not
+with :math:`M^2`.
+
+Stability of the two discrete-time linear laws (not in the paper; standard results):
+
+* Displacement-based formation control, eq. (16)/(19): the shape error obeys
+  :math:`e_{k+1} = (I - \varepsilon L)\, e_k`, which converges iff
+  :math:`\varepsilon\,\lambda_{\max}(L) < 2` (and without oscillation iff
+  :math:`\varepsilon\,\lambda_{\max}(L) \le 1`).
+* Leader-follower velocity consensus, eq. (14) corrected: the followers' error obeys
+  :math:`e_{k+1} = (I - \gamma L_{ff})\, e_k` with :math:`L_{ff}` the follower block of the
+  Laplacian (positive definite for a connected graph), which converges iff
+  :math:`\gamma\,\lambda_{\max}(L_{ff}) < 2`. The sufficient condition quoted in
+  PAPER_NOTES, :math:`\gamma < 1/\Delta` (:math:`\Delta` the largest degree), also makes
+  each update a convex combination, so no velocity ever exceeds the leader's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from . import _validation as _v
+
+__all__ = [
+    "GRAPH_KINDS",
+    "Adjacency",
+    "communication_graph",
+    "consensus_step_limit",
+    "formation_step_limit",
+]
+
+#: Graph kinds understood by :func:`communication_graph`.
+GRAPH_KINDS = ("ring", "complete", "path", "star", "random_geometric", "edges")
+
+
+@dataclass(frozen=True, eq=False)
+class Adjacency:
+    """Undirected binary adjacency in CSR form (row ``m`` lists the neighbours of UAV ``m``).
+
+    Parameters
+    ----------
+    indptr : ndarray of int64, shape (M + 1,)
+        CSR row pointers.
+    indices : ndarray of int64, shape (2 |E|,)
+        Neighbour indices, sorted within each row.
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+
+    @classmethod
+    def from_graph(cls, graph: nx.Graph) -> Adjacency:
+        """Build from a networkx graph on the nodes ``0 .. M-1``.
+
+        Parameters
+        ----------
+        graph : networkx.Graph
+            Undirected graph whose nodes are exactly ``range(M)``.
+
+        Returns
+        -------
+        Adjacency
+            The CSR adjacency.
+        """
+        n = graph.number_of_nodes()
+        if set(graph.nodes) != set(range(n)):
+            raise ValueError("graph: nodes must be the UAV indices 0 .. M-1")
+        matrix = nx.to_scipy_sparse_array(graph, nodelist=range(n), format="csr", dtype=float)
+        matrix.sort_indices()
+        return cls(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64))
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of UAVs M."""
+        return int(self.indptr.shape[0] - 1)
+
+    @property
+    def degrees(self) -> np.ndarray:
+        """Degree of each UAV, shape (M,)."""
+        return np.diff(self.indptr)
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Undirected edges ``(m, p)`` with ``m < p``, shape (|E|, 2)."""
+        rows = np.repeat(np.arange(self.n_nodes), self.degrees)
+        keep = rows < self.indices
+        return np.stack([rows[keep], self.indices[keep]], axis=-1)
+
+    def laplacian(self) -> sp.csr_array:
+        """Graph Laplacian :math:`L = D - A` as a sparse array, shape (M, M)."""
+        n = self.n_nodes
+        adj = sp.csr_array(
+            (np.ones(self.indices.shape[0]), self.indices, self.indptr), shape=(n, n)
+        )
+        return sp.diags_array(self.degrees.astype(float)) - adj
+
+
+def communication_graph(
+    kind: str,
+    n_uavs: int,
+    *,
+    radius: float | None = None,
+    seed: int | None = None,
+    edges: list[list[int]] | None = None,
+    center: int = 0,
+) -> nx.Graph:
+    """Build the communication graph of a formation.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`GRAPH_KINDS`: ``ring`` (cycle over the UAV indices, the paper's
+        default), ``complete``, ``path``, ``star`` (hub ``center``), ``random_geometric``
+        (nodes dropped uniformly in the unit square with ``seed``, linked when closer than
+        ``radius``; networkx's model) or ``edges`` (the explicit list ``edges``).
+    n_uavs : int
+        Number of UAVs M >= 2.
+    radius : float, optional
+        Connection radius of ``random_geometric`` (unit-square units, in (0, sqrt(2)]).
+    seed : int, optional
+        Seed of ``random_geometric``.
+    edges : list of [int, int], optional
+        Undirected edges for ``edges``.
+    center : int, default 0
+        Hub of ``star``.
+
+    Returns
+    -------
+    networkx.Graph
+        Undirected graph on the nodes ``0 .. M-1``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind, missing or bad parameters, self-loops, nodes out of range, or a
+        disconnected graph (the formation laws need a connected graph).
+    """
+    n = _v.count(n_uavs, "n_uavs", 2)
+    if kind == "ring":
+        graph = nx.cycle_graph(n)
+    elif kind == "complete":
+        graph = nx.complete_graph(n)
+    elif kind == "path":
+        graph = nx.path_graph(n)
+    elif kind == "star":
+        c = _v.count(center, "graph.center", 0)
+        if c >= n:
+            raise ValueError(f"graph.center: must be a UAV index below {n}, got {c}")
+        graph = nx.relabel_nodes(nx.star_graph(n - 1), lambda i: (i + c) % n)
+    elif kind == "random_geometric":
+        if radius is None or seed is None:
+            raise ValueError("graph: random_geometric needs 'radius' and 'seed'")
+        r = _v.scalar(radius, "graph.radius")
+        if not r > 0.0:
+            raise ValueError(f"graph.radius: must be > 0, got {radius!r}")
+        graph = nx.random_geometric_graph(n, r, seed=_v.count(seed, "graph.seed", 0))
+        graph = nx.Graph(graph.edges)
+        graph.add_nodes_from(range(n))
+    elif kind == "edges":
+        if edges is None:
+            raise ValueError("graph.edges: kind 'edges' needs an explicit edge list")
+        graph = nx.Graph()
+        graph.add_nodes_from(range(n))
+        for i, edge in enumerate(edges):
+            if len(edge) != 2:
+                raise ValueError(f"graph.edges[{i}]: expected a pair [m, p], got {edge!r}")
+            m, p = (int(x) for x in edge)
+            if not (0 <= m < n and 0 <= p < n):
+                raise ValueError(f"graph.edges[{i}]: UAV index out of range 0..{n - 1}")
+            if m == p:
+                raise ValueError(f"graph.edges[{i}]: self-loop on UAV {m}")
+            graph.add_edge(m, p)
+    else:
+        raise ValueError(f"graph.kind: expected one of {', '.join(GRAPH_KINDS)}, got {kind!r}")
+    if not nx.is_connected(graph):
+        parts = nx.number_connected_components(graph)
+        raise ValueError(
+            f"graph: the {kind} graph on {n} UAVs is disconnected ({parts} components); "
+            "the consensus and formation laws need a connected graph"
+        )
+    return graph
+
+
+def _largest_eigenvalue(matrix: sp.csr_array) -> float:
+    n = matrix.shape[0]
+    if n <= 400:
+        return float(np.linalg.eigvalsh(matrix.toarray())[-1])
+    return float(spla.eigsh(matrix, k=1, which="LA", return_eigenvectors=False, tol=1e-8)[0])
+
+
+def formation_step_limit(adjacency: Adjacency) -> float:
+    r"""Largest stable formation gain, :math:`2/\lambda_{\max}(L)`.
+
+    Parameters
+    ----------
+    adjacency : Adjacency
+        The communication graph.
+
+    Returns
+    -------
+    float
+        The formation law converges iff :math:`\varepsilon` is below this value.
+    """
+    return 2.0 / _largest_eigenvalue(adjacency.laplacian())
+
+
+def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:
+    r"""Largest stable consensus step, :math:`2/\lambda_{\max}(L_{ff})`.
+
+    Parameters
+    ----------
+    adjacency : Adjacency
+        The communication graph.
+    leader : int
+        Index of the leader UAV.
+
+    Returns
+    -------
+    float
+        The leader-follower consensus converges iff :math:`\gamma` is below this value.
+    """
+    lap = adjacency.laplacian()
+    keep = np.setdiff1d(np.arange(adjacency.n_nodes), [leader])
+    return 2.0 / _largest_eigenvalue(lap[keep][:, keep])

@@ -1,0 +1,529 @@
+"""Mission scenarios: a pydantic model read from TOML, and the built-in ``paper`` scenario.
+
+A scenario fixes everything a mission simulation needs: the UAVs and how they start, the
+altitude and the target, the radar, the time step, the control gains, the motion
+disturbance, the communication graph, the obstacles and the rule for the scaling factor
+eta. Files are TOML (read with :mod:`tomllib`); ``crlbswarm scenario show paper`` prints the
+built-in paper scenario as a file to copy and edit. Every field, its unit and its default is
+listed in ``docs/scenarios.md``.
+
+Validation happens when the scenario is built, before anything runs: unknown or missing
+fields, wrong types, fewer than 3 UAVs, a disconnected graph, a start or target inside an
+obstacle, non-positive time step, or gains beyond the stability bounds of
+:mod:`crlbswarm.graphs` raise :class:`ScenarioError` (a :class:`ValueError`) whose one-line
+message names the field.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from functools import cached_property
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import tomlkit
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .control import Obstacles
+from .design import optimal_formation
+from .graphs import (
+    Adjacency,
+    communication_graph,
+    consensus_step_limit,
+    formation_step_limit,
+)
+from .radar import Radar
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "BUILTIN_SCENARIOS",
+    "CircleObstacle",
+    "ControlConfig",
+    "DisturbanceConfig",
+    "EtaConfig",
+    "GraphConfig",
+    "RadarConfig",
+    "RectangleObstacle",
+    "Scenario",
+    "ScenarioError",
+    "TimeConfig",
+    "UavsConfig",
+    "load_scenario",
+]
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario; the message is one line naming the field and the reason."""
+
+
+Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+class UavsConfig(_Model):
+    """The UAVs and their start."""
+
+    count: int = Field(ge=3, description="number of UAVs M (>= 3)")
+    leader: int = Field(0, ge=0, description="index of the leader (the paper's UAV 1 is 0)")
+    start_region: Annotated[list[Pair], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[[x_min, x_max], [y_min, y_max]], m: starts drawn uniformly (seeded)"
+    )
+    start: list[Pair] | None = Field(None, description="explicit start positions [[x, y], ...], m")
+    rotation_deg: FiniteFloat = Field(
+        0.0, description="azimuth of the leader's slot in F*, seen from the target, deg"
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> UavsConfig:
+        if self.leader >= self.count:
+            raise ValueError(f"leader must be a UAV index below count = {self.count}")
+        if (self.start is None) == (self.start_region is None):
+            raise ValueError("give exactly one of 'start' and 'start_region'")
+        if self.start is not None:
+            if len(self.start) != self.count:
+                raise ValueError(f"start has {len(self.start)} positions, count is {self.count}")
+            if not np.all(np.isfinite(self.start)):
+                raise ValueError("start positions must be finite")
+        if self.start_region is not None:
+            (x0, x1), (y0, y1) = self.start_region
+            if not all(map(math.isfinite, (x0, x1, y0, y1))) or x0 > x1 or y0 > y1:
+                raise ValueError("start_region must be finite with x_min <= x_max, y_min <= y_max")
+        return self
+
+
+class RadarConfig(_Model):
+    """Radar parameters in linear SI units (see :class:`crlbswarm.Radar`)."""
+
+    tx_power: PositiveFloat = Field(0.1, description="transmit power per UAV, W")
+    noise_power: PositiveFloat = Field(1e-12, description="receiver noise power, W")
+    processing_gain: PositiveFloat = Field(1000.0, description="processing gain, linear")
+    tx_gain: PositiveFloat = Field(1.0, description="transmit antenna gain, linear")
+    rx_gain: PositiveFloat = Field(1.0, description="receive antenna gain, linear")
+    rcs: PositiveFloat = Field(1.0, description="radar cross section, m^2")
+    carrier_frequency: PositiveFloat = Field(5.8e9, description="carrier frequency, Hz")
+    kappa: PositiveFloat = Field(1.0, description="range-estimation constant")
+
+    def to_radar(self) -> Radar:
+        """The :class:`crlbswarm.Radar` with these parameters."""
+        return Radar(**self.model_dump())
+
+
+class TimeConfig(_Model):
+    """Time discretisation."""
+
+    step: PositiveFloat = Field(description="sampling interval dT, s")
+    duration: PositiveFloat = Field(description="mission length, s (a whole number of steps)")
+
+    @model_validator(mode="after")
+    def _check(self) -> TimeConfig:
+        n = self.duration / self.step
+        if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
+            raise ValueError("duration must be a positive whole number of steps")
+        return self
+
+    @property
+    def steps(self) -> int:
+        """Number of steps K."""
+        return round(self.duration / self.step)
+
+
+class ControlConfig(_Model):
+    """Gains of the control laws (Sec. IV; choices documented in docs/control.md)."""
+
+    epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
+    gamma: PositiveFloat = Field(0.25, description="consensus step (< 1 / max degree)")
+    guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
+    cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
+    safety_radius: PositiveFloat = Field(5.0, description="l_safe, m (paper: 5)")
+    repulsion_gain: PositiveFloat = Field(2.0, description="E_r, m^3 per step")
+    repulsion_max_step: PositiveFloat = Field(1.0, description="cap on |u^r| per step, m")
+    formation_steering: bool = Field(
+        True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
+    )
+
+
+class DisturbanceConfig(_Model):
+    """Motion disturbance n_{m,k} ~ N(0, sigma^2 I), eq. (3)."""
+
+    sigma: Annotated[float, Field(ge=0, allow_inf_nan=False)] = Field(
+        0.01, description="standard deviation per axis per step, m (paper: 0.01)"
+    )
+
+
+class GraphConfig(_Model):
+    """Communication graph (see :func:`crlbswarm.communication_graph`)."""
+
+    kind: Literal["ring", "complete", "path", "star", "random_geometric", "edges"] = Field(
+        "ring", description="ring (paper), complete, path, star, random_geometric or edges"
+    )
+    radius: PositiveFloat | None = Field(None, description="random_geometric: link radius")
+    seed: Annotated[int, Field(ge=0)] | None = Field(None, description="random_geometric seed")
+    edges: list[Annotated[list[int], Field(min_length=2, max_length=2)]] | None = Field(
+        None, description="edges: explicit list of [m, p] pairs"
+    )
+    center: Annotated[int, Field(ge=0)] = Field(0, description="star: index of the hub")
+
+
+class RectangleObstacle(_Model):
+    """Axis-aligned rectangle."""
+
+    type: Literal["rectangle"]
+    x: Pair = Field(description="[x_min, x_max], m")
+    y: Pair = Field(description="[y_min, y_max], m")
+
+    @model_validator(mode="after")
+    def _check(self) -> RectangleObstacle:
+        if not np.all(np.isfinite([*self.x, *self.y])):
+            raise ValueError("bounds must be finite")
+        if self.x[0] >= self.x[1] or self.y[0] >= self.y[1]:
+            raise ValueError("need x_min < x_max and y_min < y_max")
+        return self
+
+
+class CircleObstacle(_Model):
+    """Disc."""
+
+    type: Literal["circle"]
+    center: Pair = Field(description="[x, y], m")
+    radius: PositiveFloat = Field(description="m")
+
+    @model_validator(mode="after")
+    def _check(self) -> CircleObstacle:
+        if not np.all(np.isfinite(self.center)):
+            raise ValueError("center must be finite")
+        return self
+
+
+Obstacle = Annotated[RectangleObstacle | CircleObstacle, Field(discriminator="type")]
+
+
+class EtaConfig(_Model):
+    """Rule for the scaling factor eta (not in the paper; see :func:`crlbswarm.eta_target`)."""
+
+    enabled: bool = Field(True, description="false keeps eta = 1")
+    minimum: Annotated[float, Field(gt=0, le=1)] = Field(0.3, description="smallest eta")
+    rate: PositiveFloat = Field(0.1, description="largest change of eta per second, 1/s")
+    lookahead: PositiveFloat = Field(40.0, description="distance looked ahead, m")
+    margin: PositiveFloat | None = Field(
+        None, description="clearance to keep, m (default: control.safety_radius)"
+    )
+    samples: Annotated[int, Field(ge=2)] = Field(32, description="points sampled on the path")
+
+
+class Scenario(_Model):
+    """A complete mission scenario (see the module docstring and docs/scenarios.md).
+
+    Parameters
+    ----------
+    name : str
+        Short name.
+    description : str
+        One line of text.
+    altitude : float
+        Common flight altitude H, m.
+    target : [float, float]
+        Target position s, m.
+    uavs : UavsConfig
+        Count, leader, start.
+    time : TimeConfig
+        Step and duration.
+    radar : RadarConfig
+        Radar (paper profile by default).
+    control : ControlConfig
+        Gains.
+    disturbance : DisturbanceConfig
+        Motion noise.
+    graph : GraphConfig
+        Communication graph.
+    obstacles : list of RectangleObstacle or CircleObstacle
+        Obstacles.
+    eta : EtaConfig
+        Scaling-factor rule.
+    """
+
+    name: str = Field("custom", description="short name")
+    description: str = Field("", description="one line of text")
+    altitude: PositiveFloat = Field(description="common flight altitude H, m")
+    target: Pair = Field(description="target position s = [x, y], m")
+    uavs: UavsConfig
+    time: TimeConfig
+    radar: RadarConfig = RadarConfig()
+    control: ControlConfig = ControlConfig()
+    disturbance: DisturbanceConfig = DisturbanceConfig()
+    graph: GraphConfig = GraphConfig()
+    obstacles: list[Obstacle] = Field(default_factory=list)
+    eta: EtaConfig = EtaConfig()
+
+    @model_validator(mode="after")
+    def _check_scene(self) -> Scenario:
+        if not np.all(np.isfinite(self.target)):
+            raise _FieldError("target", "must be finite")
+        obstacles = self.obstacle_set
+        _check_outside(obstacles, np.asarray(self.target)[None], "target")
+        if self.uavs.start is not None:
+            _check_outside(obstacles, np.asarray(self.uavs.start), "uavs.start")
+        else:
+            (x0, x1), (y0, y1) = self.uavs.start_region
+            for i, ob in enumerate(self.obstacles):
+                if _region_overlaps(ob, x0, x1, y0, y1):
+                    raise _FieldError(
+                        "uavs.start_region", f"overlaps obstacles[{i}]; starts could be inside it"
+                    )
+        try:
+            adjacency = self.adjacency
+        except ValueError as exc:
+            raise _FieldError(*_split_field(str(exc), "graph")) from exc
+        eps_max = formation_step_limit(adjacency)
+        if self.control.epsilon >= eps_max:
+            raise _FieldError(
+                "control.epsilon",
+                f"{self.control.epsilon:g} is unstable on this graph (must be < "
+                f"2/lambda_max(L) = {eps_max:.4g})",
+            )
+        gamma_max = consensus_step_limit(adjacency, self.uavs.leader)
+        if self.control.gamma >= gamma_max:
+            raise _FieldError(
+                "control.gamma",
+                f"{self.control.gamma:g} is unstable on this graph (must be < "
+                f"2/lambda_max(L_ff) = {gamma_max:.4g})",
+            )
+        return self
+
+    # -- derived objects -----------------------------------------------------------------
+    @cached_property
+    def obstacle_set(self) -> Obstacles:
+        """The obstacles as arrays for the control kernels."""
+        rects = [[*o.x, *o.y] for o in self.obstacles if isinstance(o, RectangleObstacle)]
+        circles = [[*o.center, o.radius] for o in self.obstacles if isinstance(o, CircleObstacle)]
+        return Obstacles(rects, circles)
+
+    @cached_property
+    def adjacency(self) -> Adjacency:
+        """The communication graph as CSR adjacency."""
+        g = self.graph
+        graph = communication_graph(
+            g.kind, self.uavs.count, radius=g.radius, seed=g.seed, edges=g.edges, center=g.center
+        )
+        return Adjacency.from_graph(graph)
+
+    @cached_property
+    def formation(self) -> np.ndarray:
+        """The CRLB-optimal formation F* over the target, shape (M, 2), m."""
+        return optimal_formation(
+            self.uavs.count,
+            np.asarray(self.target),
+            self.altitude,
+            self.radar.to_radar(),
+            rotation=math.radians(self.uavs.rotation_deg),
+        )
+
+    # -- TOML ------------------------------------------------------------------------------
+    @classmethod
+    def from_toml(cls, text: str, source: str = "scenario") -> Scenario:
+        """Parse and validate a scenario from TOML text.
+
+        Parameters
+        ----------
+        text : str
+            TOML document.
+        source : str, default "scenario"
+            Name used in error messages (for example the file name).
+
+        Returns
+        -------
+        Scenario
+            The validated scenario.
+
+        Raises
+        ------
+        ScenarioError
+            With one line naming the field and the reason.
+        """
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{source}: invalid TOML: {exc}") from exc
+        return cls.from_dict(data, source)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "scenario") -> Scenario:
+        """Validate a scenario from a (TOML-shaped) dictionary.
+
+        Parameters
+        ----------
+        data : dict
+            Nested dictionary as read from TOML.
+        source : str, default "scenario"
+            Name used in error messages.
+
+        Returns
+        -------
+        Scenario
+            The validated scenario.
+        """
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            raise ScenarioError(f"{source}: {_describe(exc)}") from None
+        except _FieldError as exc:
+            raise ScenarioError(f"{source}: {exc}") from None
+
+    def to_toml(self) -> str:
+        """The scenario as a TOML document, each field commented with its meaning and unit.
+
+        Returns
+        -------
+        str
+            TOML text; :meth:`from_toml` reads it back to an equal scenario.
+        """
+        doc = tomlkit.document()
+        doc.add(tomlkit.comment(f"crlbswarm scenario '{self.name}'. Fields: docs/scenarios.md"))
+        for key, value in self.model_dump(exclude_none=True).items():
+            sub = getattr(self, key)
+            if isinstance(sub, BaseModel):
+                table = tomlkit.table()
+                for sub_key, sub_value in value.items():
+                    table.add(sub_key, _commented(sub_value, type(sub).model_fields[sub_key]))
+                doc.add(tomlkit.nl())
+                doc.add(key, table)
+            elif key == "obstacles":
+                if value:
+                    array = tomlkit.aot()
+                    for item in value:
+                        array.append(tomlkit.item(item))
+                    doc.add(tomlkit.nl())
+                    doc.add(key, array)
+            else:
+                doc.add(key, _commented(value, type(self).model_fields[key]))
+        return tomlkit.dumps(doc)
+
+
+def _commented(value: Any, info: Any) -> Any:
+    """A TOML item for ``value`` with the field's description as a trailing comment."""
+    item = tomlkit.item(value)
+    if info.description:
+        item.comment(info.description)
+    return item
+
+
+class _FieldError(ValueError):
+    """Raised by validators that know the dotted field name."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+
+
+def _split_field(message: str, prefix: str) -> tuple[str, str]:
+    head, sep, reason = message.partition(": ")
+    if sep and head.startswith(prefix):
+        return head, reason
+    return prefix, message
+
+
+def _describe(exc: ValidationError) -> str:
+    """One line from a pydantic error: ``field.path: reason`` (several joined by '; ')."""
+    parts = []
+    for err in exc.errors(include_url=False):
+        loc = [str(p) for p in err["loc"] if not str(p).startswith("function-")]
+        # Drop the discriminator tag pydantic inserts after a list index (obstacles.1.circle).
+        loc = [p for i, p in enumerate(loc) if not (i and loc[i - 1].isdigit() and p in _TAGS)]
+        msg = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "missing":
+            msg = "missing required field"
+        elif err["type"] == "extra_forbidden":
+            msg = "unknown field"
+        elif "input" in err and not isinstance(err["input"], dict | list):
+            msg = f"{msg} (got {err['input']!r})"
+        parts.append(f"{'.'.join(loc)}: {msg}" if loc else msg)
+    return "; ".join(parts)
+
+
+_TAGS = ("rectangle", "circle")
+
+
+def _check_outside(obstacles: Obstacles, points: np.ndarray, field: str) -> None:
+    from .control import obstacle_clearance
+
+    if obstacles.count == 0:
+        return
+    clearance = obstacle_clearance(points, obstacles)
+    inside = np.flatnonzero(clearance <= 0)
+    if inside.size:
+        where = f"{field}[{inside[0]}]" if points.shape[0] > 1 else field
+        raise _FieldError(where, "lies inside an obstacle")
+
+
+def _region_overlaps(ob: RectangleObstacle | CircleObstacle, x0, x1, y0, y1) -> bool:
+    if isinstance(ob, RectangleObstacle):
+        return ob.x[0] <= x1 and x0 <= ob.x[1] and ob.y[0] <= y1 and y0 <= ob.y[1]
+    cx = min(max(ob.center[0], x0), x1)
+    cy = min(max(ob.center[1], y0), y1)
+    return math.hypot(cx - ob.center[0], cy - ob.center[1]) <= ob.radius
+
+
+# ---------------------------------------------------------------------------------------
+# Built-in scenarios
+# ---------------------------------------------------------------------------------------
+_PAPER = {
+    "name": "paper",
+    "description": "Figs. 3-4 of the paper: 6 UAVs through a 20 m gap to hover over (80, 90)",
+    "altitude": 20.0,
+    "target": [80.0, 90.0],
+    "uavs": {"count": 6, "leader": 0, "start_region": [[-10.0, 10.0], [-10.0, 10.0]]},
+    "time": {"step": 0.1, "duration": 150.0},
+    "control": {"epsilon": 0.01, "safety_radius": 5.0},
+    "disturbance": {"sigma": 0.01},
+    "graph": {"kind": "ring"},
+    "obstacles": [
+        {"type": "rectangle", "x": [30.0, 45.0], "y": [0.0, 34.0]},
+        {"type": "rectangle", "x": [30.0, 45.0], "y": [54.0, 80.0]},
+    ],
+}
+
+#: Built-in scenarios by name (dictionaries as read from TOML).
+BUILTIN_SCENARIOS: dict[str, dict[str, Any]] = {"paper": _PAPER}
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a built-in scenario by name, or a TOML scenario file by path.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        ``"paper"`` (see :data:`BUILTIN_SCENARIOS`) or the path of a ``.toml`` file.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario.
+
+    Raises
+    ------
+    ScenarioError
+        If there is no such scenario or file, or it is invalid (one line naming the field).
+    """
+    key = str(name_or_path)
+    if key in BUILTIN_SCENARIOS:
+        return Scenario.from_dict(BUILTIN_SCENARIOS[key], source=f"scenario '{key}'")
+    path = Path(name_or_path)
+    if not path.is_file():
+        known = ", ".join(sorted(BUILTIN_SCENARIOS))
+        raise ScenarioError(
+            f"scenario: {key!r} is neither a built-in scenario ({known}) nor a file"
+        )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from exc
+    return Scenario.from_toml(text, source=str(path))

@@ -1,0 +1,414 @@
+r"""Mission simulator: the distributed controller of Sec. IV, run for a batch of seeds.
+
+:func:`simulate` runs a :class:`~crlbswarm.scenario.Scenario` from its start to the end of its
+duration for one seed or a batch of seeds at once. Per step :math:`k` (all UAVs in parallel,
+each using only its neighbours' information, except the globally broadcast
+:math:`\eta_k`, as in the paper):
+
+1. the leader computes its reference velocity :math:`\mathbf v^*_k` toward its slot of
+   :math:`F^*` over the target (:func:`crlbswarm.leader_guidance`);
+2. each UAV computes its formation input and obstacle repulsion, eqs. (18)-(19);
+3. every UAV moves by the motion model of eq. (3),
+   :math:`\mathbf q_{m,k+1} = \mathbf q_{m,k} + \mathbf u_{m,k} + \mathbf v_{m,k}\Delta T +
+   \mathbf n_{m,k}`, with :math:`\mathbf g_{m,k} = \mathbf v_{m,k}` from the consensus (the
+   leader's is :math:`\mathbf v^*_k`);
+4. the followers update their velocity estimates by the corrected consensus, eq. (14);
+5. :math:`\eta` steps toward :func:`crlbswarm.eta_target` at a limited rate.
+
+The compiled kernel loops over runs (in parallel threads) and steps; each run uses only its
+own random streams, so run :math:`b` of a batch is bit-identical to the single run with the
+same seed. Random numbers: for seed :math:`s`, ``SeedSequence(s).spawn(2)`` gives one stream
+for the start positions and one for the motion disturbance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from . import _validation as _v
+from .control import (
+    _clearance_point,
+    _consensus,
+    _cost,
+    _eta_goal,
+    _formation,
+    _reference,
+    _repulsion_point,
+)
+from .design import crlb_bound
+from .fisher import crlb
+from .scenario import Scenario
+
+__all__ = ["MissionResult", "SimulationDivergedError", "simulate", "start_positions"]
+
+#: Positions beyond this distance from the origin (m) count as a diverged run.
+DIVERGENCE_LIMIT = 1.0e6
+
+#: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
+CRLB_TOL = 0.01
+CENTROID_TOL = 0.5
+
+#: Runs simulated per chunk (bounds the memory of the pre-drawn disturbance).
+CHUNK_RUNS = 256
+
+
+class SimulationDivergedError(RuntimeError):
+    """A run produced NaN or runaway positions; the message names the seed and the step."""
+
+
+# ---------------------------------------------------------------------------------------
+# Kernel
+# ---------------------------------------------------------------------------------------
+@njit(cache=True)
+def _min_separation(q):
+    best = math.inf
+    n = q.shape[0]
+    for m in range(n):
+        for p in range(m + 1, n):
+            dx = q[m, 0] - q[p, 0]
+            dy = q[m, 1] - q[p, 1]
+            best = min(best, dx * dx + dy * dy)
+    return math.sqrt(best)
+
+
+@njit(cache=True)
+def _mission(
+    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out,
+    noise, target, delta, leader, indptr, indices, dt,
+    eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
+    eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+):  # fmt: skip
+    """One run. ``q_out[0]`` holds the start; returns -1 or the step that diverged."""
+    k_steps = noise.shape[0]
+    m_uavs = q_out.shape[1]
+    u = np.empty((m_uavs, 2))
+    vref = np.empty(2)
+    sx, sy = target[0], target[1]
+    eta_step = eta_rate * dt
+    for k in range(k_steps + 1):
+        q = q_out[k]
+        eta = eta_out[k]
+        gx = sx + eta * delta[leader, 0]
+        gy = sy + eta * delta[leader, 1]
+        cx = 0.0
+        cy = 0.0
+        for m in range(m_uavs):
+            cx += q[m, 0]
+            cy += q[m, 1]
+        cx /= m_uavs
+        cy /= m_uavs
+        vref[0], vref[1] = _reference(
+            q[leader, 0], q[leader, 1], gx, gy, cx, cy, kg, vc,
+            rects, circles, e_r, l_safe, eta * radius if steer else 0.0, dt,
+        )  # fmt: skip
+        vref_out[k, 0] = vref[0]
+        vref_out[k, 1] = vref[1]
+        v_out[k, leader, 0] = vref[0]
+        v_out[k, leader, 1] = vref[1]
+        clearance = math.inf
+        for m in range(m_uavs):
+            clearance = min(clearance, _clearance_point(q[m, 0], q[m, 1], rects, circles))
+        clear_out[k] = clearance
+        sep_out[k] = _min_separation(q)
+        if k == k_steps:
+            break
+        # Eqs. (18)-(19) and the motion model, eq. (3).
+        _formation(q, delta, eta, eps, indptr, indices, u)
+        v = v_out[k]
+        q_next = q_out[k + 1]
+        for m in range(m_uavs):
+            rx, ry = _repulsion_point(q[m, 0], q[m, 1], rects, circles, e_r, l_safe, u_max)
+            q_next[m, 0] = q[m, 0] + u[m, 0] + rx + v[m, 0] * dt + noise[k, m, 0]
+            q_next[m, 1] = q[m, 1] + u[m, 1] + ry + v[m, 1] * dt + noise[k, m, 1]
+            if not (abs(q_next[m, 0]) < DIVERGENCE_LIMIT and abs(q_next[m, 1]) < DIVERGENCE_LIMIT):
+                return k + 1
+        cost_out[k] = _cost(q, q_next, delta, vref, dt, indptr, indices)
+        # Corrected consensus, eq. (14).
+        _consensus(v, vref, leader, indptr, indices, gamma, v_out[k + 1])
+        # Scaling factor: rate-limited step toward the free-width rule.
+        if eta_on:
+            goal = _eta_goal(
+                cx, cy, sx, sy, radius, rects, circles,
+                margin, lookahead, n_samples, eta_min,
+            )  # fmt: skip
+            eta_out[k + 1] = eta + min(eta_step, max(-eta_step, goal - eta))
+        else:
+            eta_out[k + 1] = 1.0
+    return -1
+
+
+@njit(cache=True, parallel=True)
+def _mission_batch(
+    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out, status,
+    noise, target, delta, leader, indptr, indices, dt,
+    eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
+    eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+):  # fmt: skip
+    for b in prange(q_out.shape[0]):
+        status[b] = _mission(
+            q_out[b], v_out[b], vref_out[b], eta_out[b], clear_out[b], sep_out[b],
+            cost_out[b], noise[b], target, delta, leader, indptr, indices, dt,
+            eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
+            eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+        )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------
+# Result
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class MissionResult:
+    """Trajectories and metrics of a batch of missions (B runs, K steps, M UAVs).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario that was run.
+    seeds : ndarray of int, shape (B,)
+        Seed of each run.
+    time : ndarray, shape (K+1,)
+        Time of each sample, s.
+    positions : ndarray, shape (B, K+1, M, 2)
+        UAV positions, m.
+    velocities : ndarray, shape (B, K+1, M, 2)
+        Consensus velocities :math:`\\mathbf v_{m,k}` (the leader's is :math:`\\mathbf v^*_k`),
+        m/s.
+    reference_velocity : ndarray, shape (B, K+1, 2)
+        Leader's reference :math:`\\mathbf v^*_k`, m/s.
+    eta : ndarray, shape (B, K+1)
+        Scaling factor.
+    crlb : ndarray, shape (B, K+1)
+        CRLB at the actual positions and the true target, m^2.
+    cost : ndarray, shape (B, K)
+        :math:`\\mathcal L_\\text{tot}` of eq. (15) at steps 0..K-1.
+    clearance : ndarray, shape (B, K+1)
+        Smallest signed distance from a UAV to an obstacle, m (inf without obstacles).
+    separation : ndarray, shape (B, K+1)
+        Smallest distance between two UAVs, m.
+    bound : float
+        Theoretical bound :math:`4/\\sum_m w_m^*`, eq. (11), m^2.
+    """
+
+    scenario: Scenario
+    seeds: np.ndarray
+    time: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    reference_velocity: np.ndarray
+    eta: np.ndarray
+    crlb: np.ndarray
+    cost: np.ndarray
+    clearance: np.ndarray
+    separation: np.ndarray
+    bound: float
+    metrics: dict[str, np.ndarray] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "metrics", self._metrics())
+
+    @property
+    def n_runs(self) -> int:
+        """Number of runs B."""
+        return int(self.seeds.shape[0])
+
+    @property
+    def centroid_error(self) -> np.ndarray:
+        """Distance from the formation centroid to the target, m, shape (B, K+1)."""
+        c = self.positions.mean(axis=-2)
+        return np.hypot(*(c - np.asarray(self.scenario.target)).transpose(2, 0, 1))
+
+    def _metrics(self) -> dict[str, np.ndarray]:
+        ratio = self.crlb / self.bound
+        centroid = self.centroid_error
+        ok = (ratio <= 1.0 + CRLB_TOL) & (centroid <= CENTROID_TOL)
+        # Converged from step k on: every later step is ok (reverse cumulative AND).
+        settled = np.flip(np.logical_and.accumulate(np.flip(ok, axis=1), axis=1), axis=1)
+        first = np.argmax(settled, axis=1)
+        conv = np.where(settled[:, -1], self.time[first], np.nan)
+        return {
+            "seed": self.seeds,
+            "final_crlb_ratio": ratio[:, -1],
+            "final_centroid_error_m": centroid[:, -1],
+            "final_eta": self.eta[:, -1],
+            "min_eta": self.eta.min(axis=1),
+            "convergence_time_s": conv,
+            "min_clearance_m": self.clearance.min(axis=1),
+            "min_separation_m": self.separation.min(axis=1),
+            "max_cost": self.cost.max(axis=1),
+            "final_cost": self.cost[:, -1],
+        }
+
+    def summary(self) -> dict[str, Any]:
+        """Aggregate figures over the runs, JSON-ready.
+
+        Returns
+        -------
+        dict
+            Scenario name, number of runs, steps, the bound, and for each metric its min,
+            mean and max over the runs (NaN-aware for the convergence time, with the number
+            of runs that converged).
+        """
+        out: dict[str, Any] = {
+            "scenario": self.scenario.name,
+            "runs": self.n_runs,
+            "steps": int(self.time.shape[0] - 1),
+            "duration_s": float(self.time[-1]),
+            "bound_m2": float(self.bound),
+            "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
+        }
+        for name, values in self.metrics.items():
+            if name == "seed":
+                continue
+            finite = values[np.isfinite(values)]
+            out[name] = {
+                "min": float(finite.min()) if finite.size else None,
+                "mean": float(finite.mean()) if finite.size else None,
+                "max": float(finite.max()) if finite.size else None,
+            }
+        return out
+
+
+# ---------------------------------------------------------------------------------------
+# Driver
+# ---------------------------------------------------------------------------------------
+def _streams(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
+    start_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
+    return np.random.default_rng(start_ss), np.random.default_rng(noise_ss)
+
+
+def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
+    """Start positions of the run with ``seed``: explicit, or uniform in the start region.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    seed : int
+        Seed of the run.
+
+    Returns
+    -------
+    ndarray, shape (M, 2)
+        Start positions, m.
+    """
+    if scenario.uavs.start is not None:
+        return np.array(scenario.uavs.start, dtype=float)
+    (x0, x1), (y0, y1) = scenario.uavs.start_region
+    rng, _ = _streams(seed)
+    return rng.uniform((x0, y0), (x1, y1), size=(scenario.uavs.count, 2))
+
+
+def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
+    if seed is not None and seeds is not None:
+        raise ValueError("seeds: give either seed or seeds, not both")
+    values = [0 if seed is None else seed] if seeds is None else list(seeds)
+    if not values:
+        raise ValueError("seeds: need at least one seed")
+    for s in values:
+        _v.count(s, "seeds" if seeds is not None else "seed", 0)
+    return np.array(values, dtype=np.int64)
+
+
+def simulate(
+    scenario: Scenario,
+    seed: int | None = None,
+    *,
+    seeds: Iterable[int] | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> MissionResult:
+    """Run the mission of ``scenario`` for one seed or a batch of seeds.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario (see :func:`crlbswarm.load_scenario`).
+    seed : int, optional
+        Seed of a single run (default 0).
+    seeds : iterable of int, optional
+        Seeds of a batch of independent runs (instead of ``seed``). Run ``b`` is
+        bit-identical to ``simulate(scenario, seed=seeds[b])``.
+    progress : callable, optional
+        Called with the number of runs finished after each chunk of runs (for progress bars).
+
+    Returns
+    -------
+    MissionResult
+        Trajectories, time series and per-run metrics.
+
+    Raises
+    ------
+    SimulationDivergedError
+        If a run produces NaN or positions beyond :data:`DIVERGENCE_LIMIT`, naming the run,
+        its seed and the step.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ValueError(f"scenario: expected a crlbswarm.Scenario, got {type(scenario).__name__}")
+    seed_arr = _seed_list(seed, seeds)
+    sc = scenario
+    n_runs, k_steps, m_uavs = seed_arr.shape[0], sc.time.steps, sc.uavs.count
+    target = np.asarray(sc.target, dtype=float)
+    delta = np.ascontiguousarray(sc.formation - target)
+    radius = float(np.max(np.hypot(delta[:, 0], delta[:, 1])))
+    adj, obstacles, ctl, eta = sc.adjacency, sc.obstacle_set, sc.control, sc.eta
+    margin = ctl.safety_radius if eta.margin is None else eta.margin
+
+    positions = np.empty((n_runs, k_steps + 1, m_uavs, 2))
+    velocities = np.empty_like(positions)
+    vref = np.empty((n_runs, k_steps + 1, 2))
+    eta_arr = np.empty((n_runs, k_steps + 1))
+    clearance = np.empty((n_runs, k_steps + 1))
+    separation = np.empty((n_runs, k_steps + 1))
+    cost = np.empty((n_runs, k_steps))
+    status = np.empty(n_runs, dtype=np.int64)
+
+    for lo in range(0, n_runs, CHUNK_RUNS):
+        hi = min(lo + CHUNK_RUNS, n_runs)
+        noise = np.empty((hi - lo, k_steps, m_uavs, 2))
+        for i, s in enumerate(seed_arr[lo:hi]):
+            positions[lo + i, 0] = start_positions(sc, int(s))
+            _, noise_rng = _streams(int(s))
+            noise_rng.standard_normal(out=noise[i])
+        noise *= sc.disturbance.sigma
+        velocities[lo:hi, 0] = 0.0
+        eta_arr[lo:hi, 0] = 1.0
+        _mission_batch(
+            positions[lo:hi], velocities[lo:hi], vref[lo:hi], eta_arr[lo:hi],
+            clearance[lo:hi], separation[lo:hi], cost[lo:hi], status[lo:hi],
+            noise, target, delta, sc.uavs.leader, adj.indptr, adj.indices, sc.time.step,
+            ctl.epsilon, ctl.gamma, ctl.guidance_gain, ctl.cruise_speed,
+            obstacles.rectangles, obstacles.circles, ctl.safety_radius, ctl.repulsion_gain,
+            ctl.repulsion_max_step, eta.enabled, eta.minimum, eta.rate, eta.lookahead,
+            eta.samples, margin, radius, ctl.formation_steering,
+        )  # fmt: skip
+        bad = np.flatnonzero(status[lo:hi] >= 0)
+        if bad.size:
+            b = lo + int(bad[0])
+            raise SimulationDivergedError(
+                f"run {b} (seed {seed_arr[b]}) diverged at step {status[b]} "
+                f"(t = {status[b] * sc.time.step:g} s): NaN or positions beyond "
+                f"{DIVERGENCE_LIMIT:g} m; check the gains of the scenario"
+            )
+        if progress is not None:
+            progress(hi)
+
+    radar = sc.radar.to_radar()
+    return MissionResult(
+        scenario=sc,
+        seeds=seed_arr,
+        time=np.arange(k_steps + 1) * sc.time.step,
+        positions=positions,
+        velocities=velocities,
+        reference_velocity=vref,
+        eta=eta_arr,
+        crlb=crlb(positions, target, sc.altitude, radar),
+        cost=cost,
+        clearance=clearance,
+        separation=separation,
+        bound=float(crlb_bound(m_uavs, sc.altitude, radar)),
+    )
