@@ -123,6 +123,10 @@ def test_figures_writes_everything(tmp_path, capsys):
     assert names == [
         "fig2_crlb_vs_altitude.csv",
         "fig2_crlb_vs_altitude.png",
+        "fig3_formation_evolution.csv",
+        "fig3_formation_evolution.png",
+        "fig4_crlb_and_cost.csv",
+        "fig4_crlb_and_cost.png",
         "manifest.json",
         "optimal_elevation.csv",
         "optimal_elevation.png",
@@ -170,3 +174,118 @@ def test_console_script_entry_point():
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
     assert "--uavs" in proc.stderr
+
+
+def test_figures_3_and_4_data(tmp_path, capsys):
+    """Fig. 4's CSV ends at the bound with eta back at 1; Fig. 3's has every UAV's track."""
+    status, _, err = run(capsys, "figures", "--out", str(tmp_path), "--seed", "2")
+    assert status == 0, err
+    ts = np.genfromtxt(tmp_path / "fig4_crlb_and_cost.csv", delimiter=",", names=True)
+    assert ts["time_s"][-1] == pytest.approx(150.0)
+    assert ts["crlb_m2"][-1] / ts["bound_m2"][-1] < 1.01
+    assert ts["eta"][-1] == 1.0
+    assert ts["eta"].min() < 1.0
+    assert np.isnan(ts["cost"][-1])
+    traj = np.genfromtxt(tmp_path / "fig3_formation_evolution.csv", delimiter=",", names=True)
+    assert {f"x_uav{m}" for m in range(1, 7)} <= set(traj.dtype.names)
+    assert json.loads((tmp_path / "manifest.json").read_text())["fig4_crlb_and_cost"]["seed"] == 2
+
+
+def test_scenario_show_round_trips(tmp_path, capsys):
+    """`scenario show paper` prints TOML that simulates exactly like the built-in."""
+    from crlbswarm import Scenario, load_scenario, simulate
+
+    status, out, _ = run(capsys, "scenario", "show", "paper")
+    assert status == 0
+    path = tmp_path / "paper.toml"
+    path.write_text(out)
+    status, out2, _ = run(capsys, "scenario", "show", str(path))
+    assert out2 == out
+    a = simulate(load_scenario("paper"), seed=4)
+    b = simulate(Scenario.from_toml(out), seed=4)
+    assert np.array_equal(a.positions, b.positions)
+
+
+def test_scenario_list(capsys):
+    status, out, _ = run(capsys, "scenario", "list")
+    assert status == 0
+    assert out.startswith("paper")
+
+
+def test_simulate_writes_outputs(tmp_path, capsys):
+    out = tmp_path / "sim"
+    status, _, err = run(
+        capsys, "simulate", "paper", "--seed", "3", "--runs", "4", "--out", str(out)
+    )
+    assert status == 0, err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "metrics.csv",
+        "scenario.toml",
+        "summary.json",
+        "trajectories.npz",
+    ]
+    metrics = np.genfromtxt(out / "metrics.csv", delimiter=",", names=True)
+    assert metrics["seed"].tolist() == [3, 4, 5, 6]
+    with np.load(out / "trajectories.npz") as data:
+        assert data["positions"].shape == (4, 1501, 6, 2)
+        from crlbswarm import load_scenario, simulate
+
+        single = simulate(load_scenario("paper"), seed=5)
+        assert np.array_equal(data["positions"][2], single.positions[0])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"] == 4
+    assert summary["seeds"] == {"first": 3, "last": 6}
+
+
+def test_simulate_without_trajectories(tmp_path, capsys):
+    status, _, _ = run(
+        capsys, "simulate", "paper", "--runs", "2", "--no-trajectories", "--out", str(tmp_path)
+    )
+    assert status == 0
+    with np.load(tmp_path / "trajectories.npz") as data:
+        assert "positions" not in data
+        assert data["crlb"].shape == (2, 1501)
+
+
+@pytest.mark.parametrize(
+    ("toml_edit", "field"),
+    [
+        (("count = 6", "count = 2"), "uavs.count"),
+        (("count = 6", 'count = "six"'), "uavs.count"),
+        (("altitude = 20.0", "altitude = 20.0\nspeed = 3"), "speed"),
+        (("step = 0.1", "step = 0.0"), "time.step"),
+        (('kind = "ring"', 'kind = "edges"\nedges = [[0, 1], [2, 3], [3, 4], [4, 5]]'), "graph"),
+        (("target = [80.0, 90.0]", "target = [35.0, 10.0]"), "target"),
+    ],
+)
+def test_simulate_bad_scenario_file_exit_2_nothing_written(tmp_path, capsys, toml_edit, field):
+    _, text, _ = run(capsys, "scenario", "show", "paper")
+    old, new = toml_edit
+    assert old in text
+    path = tmp_path / "bad.toml"
+    path.write_text(text.replace(old, new, 1))
+    out = tmp_path / "out"
+    status, stdout, err = run(capsys, "simulate", str(path), "--out", str(out))
+    assert status == 2
+    assert stdout == ""
+    assert err.count("\n") == 1
+    assert field in err
+    assert str(path) in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (["simulate", "paper", "--runs", "0"], "--runs"),
+        (["simulate", "paper", "--seed", "-1"], "--seed"),
+        (["simulate", "nowhere.toml"], "nowhere.toml"),
+    ],
+)
+def test_simulate_bad_options_exit_2(tmp_path, capsys, argv, option):
+    out = tmp_path / "out"
+    status, _, err = run(capsys, *argv, "--out", str(out))
+    assert status == 2
+    assert option in err
+    assert err.count("\n") == 1
+    assert not out.exists()

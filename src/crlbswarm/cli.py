@@ -1,4 +1,4 @@
-"""Command-line interface: ``crlbswarm design`` and ``crlbswarm figures``.
+"""Command-line interface: ``crlbswarm design | figures | scenario | simulate``.
 
 Errors the user can cause (bad numbers, impossible parameters, an unwritable output folder)
 are printed as one line ``crlbswarm: error: <argument>: <reason>`` on stderr, without a
@@ -22,6 +22,7 @@ from . import __version__
 from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
 from .fisher import crlb
 from .radar import Radar, db_to_linear, dbm_to_watts
+from .simulation import SimulationDivergedError
 
 __all__ = ["main"]
 
@@ -146,7 +147,43 @@ def build_parser() -> argparse.ArgumentParser:
     figures.add_argument(
         "--uavs", type=int, default=6, help="number of UAVs in Fig. 2 (default 6)"
     )
+    figures.add_argument(
+        "--seed", type=int, default=0, help="seed of the paper mission of Figs. 3-4 (default 0)"
+    )
     figures.set_defaults(func=_cmd_figures)
+
+    scenario = sub.add_parser(
+        "scenario",
+        help="list the built-in scenarios or print one as TOML",
+        description="Print a scenario as a TOML file to copy and edit (docs/scenarios.md).",
+    )
+    scenario_sub = scenario.add_subparsers(dest="action", required=True, metavar="ACTION")
+    show = scenario_sub.add_parser("show", help="print a scenario (built-in or file) as TOML")
+    show.add_argument("scenario", metavar="SCENARIO", help="built-in name (paper) or TOML file")
+    show.set_defaults(func=_cmd_scenario_show)
+    listing = scenario_sub.add_parser("list", help="list the built-in scenarios")
+    listing.set_defaults(func=_cmd_scenario_list)
+
+    simulate = sub.add_parser(
+        "simulate",
+        help="run a mission for one seed or a batch of seeds",
+        description="Simulate the distributed controller (paper Sec. IV) and write the "
+        "trajectories (.npz), per-run metrics (CSV), a summary (JSON) and the scenario used.",
+    )
+    simulate.add_argument(
+        "scenario", metavar="SCENARIO", help="built-in name (paper) or TOML file"
+    )
+    simulate.add_argument("--seed", type=int, default=0, help="seed of the first run (default 0)")
+    simulate.add_argument(
+        "--runs", type=int, default=1, help="number of runs, seeds SEED..SEED+RUNS-1 (default 1)"
+    )
+    simulate.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    simulate.add_argument(
+        "--no-trajectories",
+        action="store_true",
+        help="do not keep positions and velocities (metrics and time series only)",
+    )
+    simulate.set_defaults(func=_cmd_simulate)
     return parser
 
 
@@ -236,20 +273,42 @@ def _cmd_design(args: argparse.Namespace) -> int:
 
 
 # -- figures -----------------------------------------------------------------------------
+def _make_out(out: Path) -> Path:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out: cannot create folder {str(out)!r}: {exc.strerror}") from exc
+    return out
+
+
 def _cmd_figures(args: argparse.Namespace) -> int:
     from .experiments import crlb_vs_altitude, optimal_elevation_curve
     from .output import save_figure, write_csv, write_json
-    from .plots import plot_crlb_vs_altitude, plot_optimal_elevation
+    from .plots import (
+        plot_crlb_vs_altitude,
+        plot_mission_timeseries,
+        plot_mission_trajectories,
+        plot_optimal_elevation,
+    )
+    from .scenario import load_scenario
+    from .simulation import simulate
 
     # Compute everything first: a failure leaves the output folder untouched.
     try:
         sweep = crlb_vs_altitude(n_uavs=args.uavs)
+        _v_seed(args.seed)
     except ValueError as exc:
         raise _as_option_error(exc) from exc
     curve = optimal_elevation_curve()
+    mission = simulate(load_scenario("paper"), seed=args.seed)
     figures = {
         "fig2_crlb_vs_altitude": (plot_crlb_vs_altitude(sweep), sweep.columns()),
         "optimal_elevation": (plot_optimal_elevation(curve), curve.columns()),
+        "fig3_formation_evolution": (
+            plot_mission_trajectories(mission),
+            mission.trajectory_columns(),
+        ),
+        "fig4_crlb_and_cost": (plot_mission_timeseries(mission), mission.timeseries_columns()),
     }
     manifest = {
         "crlbswarm_version": __version__,
@@ -260,13 +319,18 @@ def _cmd_figures(args: argparse.Namespace) -> int:
             "benchmark_parameters": sweep.parameters,
         },
         "optimal_elevation": {"what": "optimal elevation (deg) and radius (m) vs altitude"},
+        "fig3_formation_evolution": {
+            "what": "UAV trajectories and formation snapshots, built-in scenario 'paper'",
+            "seed": args.seed,
+        },
+        "fig4_crlb_and_cost": {
+            "what": "CRLB, bound, cost eq. (15), eta and clearance vs time, scenario 'paper'",
+            "seed": args.seed,
+            "metrics": {k: float(v[0]) for k, v in mission.metrics.items()},
+        },
         "files": [],
     }
-    out = args.out
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"--out: cannot create folder {str(out)!r}: {exc.strerror}") from exc
+    out = _make_out(args.out)
     for stem, (fig, columns) in figures.items():
         for path in (out / f"{stem}.csv", out / f"{stem}.{args.format}"):
             if path.suffix == ".csv":
@@ -280,13 +344,85 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     return 0
 
 
+def _v_seed(seed: int) -> None:
+    if seed < 0:
+        raise UsageError(f"--seed: must be >= 0, got {seed}")
+
+
+def _cmd_scenario_show(args: argparse.Namespace) -> int:
+    from .scenario import load_scenario
+
+    print(load_scenario(args.scenario).to_toml(), end="")
+    return 0
+
+
+def _cmd_scenario_list(args: argparse.Namespace) -> int:
+    from .scenario import BUILTIN_SCENARIOS
+
+    for name, data in sorted(BUILTIN_SCENARIOS.items()):
+        print(f"{name:12s} {data.get('description', '')}")
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .output import atomic_path, write_csv, write_json, write_text
+    from .scenario import load_scenario
+    from .simulation import simulate
+
+    # Validate everything before running anything.
+    scenario = load_scenario(args.scenario)
+    _v_seed(args.seed)
+    if args.runs < 1:
+        raise UsageError(f"--runs: must be >= 1, got {args.runs}")
+    out = _make_out(args.out)
+
+    seeds = range(args.seed, args.seed + args.runs)
+    with tqdm(total=args.runs, unit="run", disable=None, file=sys.stderr) as bar:
+        result = simulate(
+            scenario,
+            seeds=seeds,
+            keep_trajectories=not args.no_trajectories,
+            progress=lambda done: bar.update(done - bar.n),
+        )
+    arrays = {
+        "time": result.time,
+        "seeds": result.seeds,
+        "centroid": result.centroid,
+        "reference_velocity": result.reference_velocity,
+        "eta": result.eta,
+        "crlb": result.crlb,
+        "cost": result.cost,
+        "clearance": result.clearance,
+        "separation": result.separation,
+        "bound": np.array(result.bound),
+        "target": np.asarray(scenario.target),
+        "formation": scenario.formation,
+    }
+    if result.positions is not None:
+        arrays["positions"] = result.positions
+        arrays["velocities"] = result.velocities
+    with atomic_path(out / "trajectories.npz") as tmp:
+        np.savez(tmp, **arrays)
+    write_csv(out / "metrics.csv", result.metrics)
+    summary = result.summary()
+    summary["seeds"] = {"first": int(seeds[0]), "last": int(seeds[-1])}
+    summary["crlbswarm_version"] = __version__
+    write_json(out / "summary.json", summary)
+    write_text(out / "scenario.toml", scenario.to_toml())
+    for name in ("trajectories.npz", "metrics.csv", "summary.json", "scenario.toml"):
+        print(f"wrote {out / name}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``crlbswarm`` console script; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, UsageError) as exc:
+    except (ValueError, UsageError, SimulationDivergedError) as exc:
         print(f"crlbswarm: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:

@@ -248,10 +248,14 @@ def _eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sampl
         hx, hy = 1.0, 0.0
     ahead = min(lookahead, dist)
     width = math.inf
+    enough = radius + margin  # a half-width this large allows eta = 1
+    floor = margin + eta_min * radius  # a half-width this small forces eta = eta_min
     for i in range(n_samples):
         t = -radius + (ahead + radius) * i / (n_samples - 1)
         px = cx + t * hx
         py = cy + t * hy
+        if _clearance_point(px, py, rects, circles) >= enough:
+            continue  # the lateral best is at least as large: no effect on the result
         # Half-width of the corridor's cross-section: the best clearance the centre could
         # have within +-radius of the straight path (the repulsion centres the formation).
         best = -math.inf
@@ -259,6 +263,8 @@ def _eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sampl
             o = radius * (2.0 * j / (_LATERAL_SAMPLES - 1) - 1.0)
             best = max(best, _clearance_point(px - o * hy, py + o * hx, rects, circles))
         width = min(width, best)
+        if width <= floor:
+            break  # clipped at eta_min whatever the remaining samples say
     scale = (width - margin) / radius
     return min(1.0, max(eta_min, scale))
 

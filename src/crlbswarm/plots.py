@@ -11,10 +11,19 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Polygon, Rectangle
 
 from .experiments import FORMATION_LABELS, AltitudeSweep, ElevationCurve
+from .simulation import MissionResult
 
-__all__ = ["plot_crlb_vs_altitude", "plot_optimal_elevation"]
+__all__ = [
+    "mission_snapshot_steps",
+    "passage_interval",
+    "plot_crlb_vs_altitude",
+    "plot_mission_timeseries",
+    "plot_mission_trajectories",
+    "plot_optimal_elevation",
+]
 
 _STYLES = {
     "optimal": {"color": "C3", "lw": 2.2, "marker": "o", "ms": 4},
@@ -120,4 +129,217 @@ def plot_optimal_elevation(curve: ElevationCurve, ax: Axes | None = None) -> Fig
     ax.set_title("CRLB-optimal elevation angle")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower left")
+    return fig
+
+
+def _check_run(result: MissionResult, run: int) -> int:
+    if not 0 <= run < result.n_runs:
+        raise ValueError(f"run: must lie in 0..{result.n_runs - 1}, got {run}")
+    return run
+
+
+def passage_interval(result: MissionResult, run: int = 0) -> tuple[float, float] | None:
+    """First and last time a UAV of ``run`` is within the safety radius of an obstacle.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result.
+    run : int, default 0
+        Index of the run in the batch.
+
+    Returns
+    -------
+    (float, float) or None
+        Start and end of the passage, s; ``None`` if no UAV came that close.
+    """
+    near = result.clearance[_check_run(result, run)] < result.scenario.control.safety_radius
+    if not near.any():
+        return None
+    idx = np.flatnonzero(near)
+    return float(result.time[idx[0]]), float(result.time[idx[-1]])
+
+
+def mission_snapshot_steps(result: MissionResult, run: int = 0) -> list[int]:
+    """Steps at which Fig. 3 draws the formation: start, narrowest, after the passage, end.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result.
+    run : int, default 0
+        Index of the run in the batch.
+
+    Returns
+    -------
+    list of int
+        Sorted distinct step indices: 0, the middle of the interval where eta is smallest,
+        the first step after it where eta is back at 1, and the last step.
+    """
+    eta = result.eta[_check_run(result, run)]
+    last = eta.shape[0] - 1
+    steps = {0, last}
+    low = np.flatnonzero(eta <= eta.min() + 1e-12)
+    if eta.min() < 1.0:
+        steps.add(int(low[low.shape[0] // 2]))
+        after = np.flatnonzero((np.arange(eta.shape[0]) > low[-1]) & (eta >= 1.0))
+        if after.size:
+            steps.add(int(after[0]))
+    return sorted(steps)
+
+
+def _draw_obstacles(ax: Axes, result: MissionResult) -> None:
+    obstacles = result.scenario.obstacle_set
+    for i, (x0, x1, y0, y1) in enumerate(obstacles.rectangles):
+        ax.add_patch(
+            Rectangle(
+                (x0, y0),
+                x1 - x0,
+                y1 - y0,
+                color="0.55",
+                alpha=0.8,
+                lw=0,
+                label="obstacle" if i == 0 else None,
+            )
+        )
+    for i, (cx, cy, r) in enumerate(obstacles.circles):
+        ax.add_patch(
+            Circle(
+                (cx, cy),
+                r,
+                color="0.55",
+                alpha=0.8,
+                lw=0,
+                label="obstacle" if i == 0 and not len(obstacles.rectangles) else None,
+            )
+        )
+
+
+def plot_mission_trajectories(
+    result: MissionResult, run: int = 0, ax: Axes | None = None, steps: list[int] | None = None
+) -> Figure:
+    """Fig. 3: UAV trajectories, obstacles and formation snapshots (the shrink in a passage).
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result with trajectories (``keep_trajectories=True``).
+    run : int, default 0
+        Index of the run in the batch.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure is made if omitted.
+    steps : list of int, optional
+        Steps at which to draw the formation; by default :func:`mission_snapshot_steps`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure holding the axes.
+    """
+    if result.positions is None:
+        raise ValueError("result: has no trajectories (simulated with keep_trajectories=False)")
+    q = result.positions[_check_run(result, run)]
+    if ax is None:
+        ax = Figure(figsize=(6.4, 6.4), layout="constrained").add_subplot()
+    fig = ax.figure
+    _draw_obstacles(ax, result)
+    leader = result.scenario.uavs.leader
+    for m in range(q.shape[1]):
+        ax.plot(
+            q[:, m, 0],
+            q[:, m, 1],
+            lw=1.6 if m == leader else 0.8,
+            color="C3" if m == leader else f"C{m % 10}" if m % 10 != 3 else "C9",
+            alpha=0.9,
+            label="leader" if m == leader else None,
+        )
+    for k in steps if steps is not None else mission_snapshot_steps(result, run):
+        shape = q[k]
+        ax.add_patch(Polygon(shape, closed=True, fill=False, ec="k", lw=1.0, ls="-"))
+        ax.plot(shape[:, 0], shape[:, 1], "o", ms=3.5, color="k")
+        ax.annotate(
+            f"t = {result.time[k]:.0f} s\n$\\eta$ = {result.eta[run, k]:.2f}",
+            shape.max(axis=0),
+            fontsize=7,
+            xytext=(3, 3),
+            textcoords="offset points",
+        )
+    ax.add_patch(
+        Polygon(
+            result.scenario.formation,
+            closed=True,
+            fill=False,
+            ec="C3",
+            ls="--",
+            lw=1.0,
+            label="F* (CRLB-optimal)",
+        )
+    )
+    tx, ty = result.scenario.target
+    ax.plot([tx], [ty], marker="*", ms=12, color="C3", ls="none", label="target")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(
+        f"Formation evolution, scenario '{result.scenario.name}', seed {result.seeds[run]}"
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    return fig
+
+
+def plot_mission_timeseries(result: MissionResult, run: int = 0) -> Figure:
+    """Fig. 4: CRLB and control cost against time, with the bound and the passage shaded.
+
+    A third panel shows the scaling factor eta and the smallest obstacle clearance.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result.
+    run : int, default 0
+        Index of the run in the batch.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        A figure with three panels sharing the time axis.
+    """
+    b = _check_run(result, run)
+    fig = Figure(figsize=(6.4, 7.0), layout="constrained")
+    ax_crlb, ax_cost, ax_eta = fig.subplots(3, 1, sharex=True, height_ratios=(3, 3, 2))
+    t = result.time
+    ax_crlb.plot(t, result.crlb[b], color="C0", label="CRLB at the UAV positions")
+    ax_crlb.axhline(
+        result.bound,
+        color="k",
+        ls="--",
+        lw=1.0,
+        label=rf"bound $4/\sum_m w_m^*$ = {result.bound:.3g} m$^2$",
+    )
+    ax_crlb.set_yscale("log")
+    ax_crlb.set_ylabel(r"CRLB (m$^2$)")
+    ax_crlb.legend(fontsize=8)
+    ax_cost.plot(t[:-1], result.cost[b], color="C1")
+    ax_cost.set_yscale("log")
+    ax_cost.set_ylabel(r"cost $\mathcal{L}_{tot}$, eq. (15)")
+    ax_eta.plot(t, result.eta[b], color="C2", label=r"$\eta$")
+    ax_eta.set_ylim(0.0, 1.05)
+    ax_eta.set_ylabel(r"scaling $\eta$")
+    ax_clear = ax_eta.twinx()
+    clearance = np.minimum(result.clearance[b], 1e3)
+    ax_clear.plot(t, clearance, color="0.4", lw=0.8, label="min clearance")
+    ax_clear.axhline(result.scenario.control.safety_radius, color="0.4", ls=":", lw=0.8)
+    ax_clear.set_ylabel("min clearance (m)")
+    ax_eta.set_xlabel("time (s)")
+    window = passage_interval(result, b)
+    for axis in (ax_crlb, ax_cost, ax_eta):
+        axis.grid(True, which="both", alpha=0.3)
+        if window is not None:
+            axis.axvspan(*window, color="0.85", zorder=0)
+    ax_crlb.set_title(
+        "CRLB and control cost over time"
+        + (f" (shaded: passage, {window[0]:.0f}-{window[1]:.0f} s)" if window else "")
+    )
     return fig

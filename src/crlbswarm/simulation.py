@@ -174,11 +174,13 @@ class MissionResult:
         Seed of each run.
     time : ndarray, shape (K+1,)
         Time of each sample, s.
-    positions : ndarray, shape (B, K+1, M, 2)
-        UAV positions, m.
-    velocities : ndarray, shape (B, K+1, M, 2)
+    positions : ndarray, shape (B, K+1, M, 2), or None
+        UAV positions, m (``None`` if ``keep_trajectories=False``).
+    velocities : ndarray, shape (B, K+1, M, 2), or None
         Consensus velocities :math:`\\mathbf v_{m,k}` (the leader's is :math:`\\mathbf v^*_k`),
-        m/s.
+        m/s (``None`` if ``keep_trajectories=False``).
+    centroid : ndarray, shape (B, K+1, 2)
+        Formation centroid, m.
     reference_velocity : ndarray, shape (B, K+1, 2)
         Leader's reference :math:`\\mathbf v^*_k`, m/s.
     eta : ndarray, shape (B, K+1)
@@ -198,8 +200,9 @@ class MissionResult:
     scenario: Scenario
     seeds: np.ndarray
     time: np.ndarray
-    positions: np.ndarray
-    velocities: np.ndarray
+    positions: np.ndarray | None
+    velocities: np.ndarray | None
+    centroid: np.ndarray
     reference_velocity: np.ndarray
     eta: np.ndarray
     crlb: np.ndarray
@@ -220,8 +223,8 @@ class MissionResult:
     @property
     def centroid_error(self) -> np.ndarray:
         """Distance from the formation centroid to the target, m, shape (B, K+1)."""
-        c = self.positions.mean(axis=-2)
-        return np.hypot(*(c - np.asarray(self.scenario.target)).transpose(2, 0, 1))
+        offset = self.centroid - np.asarray(self.scenario.target)
+        return np.hypot(offset[..., 0], offset[..., 1])
 
     def _metrics(self) -> dict[str, np.ndarray]:
         ratio = self.crlb / self.bound
@@ -242,6 +245,62 @@ class MissionResult:
             "min_separation_m": self.separation.min(axis=1),
             "max_cost": self.cost.max(axis=1),
             "final_cost": self.cost[:, -1],
+        }
+
+    def _run_index(self, run: int) -> int:
+        if not isinstance(run, int | np.integer) or not 0 <= run < self.n_runs:
+            raise ValueError(f"run: must be an index in 0..{self.n_runs - 1}, got {run!r}")
+        return int(run)
+
+    def trajectory_columns(self, run: int = 0) -> dict[str, np.ndarray]:
+        """Columns of Fig. 3's data: time, eta and every UAV's x and y (UAVs numbered from 1).
+
+        Parameters
+        ----------
+        run : int, default 0
+            Index of the run in the batch.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``eta``, ``x_uav1``, ``y_uav1``, ..., in metres.
+        """
+        b = self._run_index(run)
+        if self.positions is None:
+            raise ValueError(
+                "result: has no trajectories (simulated with keep_trajectories=False)"
+            )
+        cols = {"time_s": self.time, "eta": self.eta[b]}
+        for m in range(self.positions.shape[2]):
+            cols[f"x_uav{m + 1}"] = self.positions[b, :, m, 0]
+            cols[f"y_uav{m + 1}"] = self.positions[b, :, m, 1]
+        return cols
+
+    def timeseries_columns(self, run: int = 0) -> dict[str, np.ndarray]:
+        """Columns of Fig. 4's data: time, CRLB, bound, cost (NaN at the last sample), eta,
+        smallest clearance and separation, centroid error.
+
+        Parameters
+        ----------
+        run : int, default 0
+            Index of the run in the batch.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``crlb_m2``, ``bound_m2``, ``cost``, ``eta``, ``min_clearance_m``,
+            ``min_separation_m``, ``centroid_error_m``.
+        """
+        b = self._run_index(run)
+        return {
+            "time_s": self.time,
+            "crlb_m2": self.crlb[b],
+            "bound_m2": np.full(self.time.shape, self.bound),
+            "cost": np.append(self.cost[b], np.nan),
+            "eta": self.eta[b],
+            "min_clearance_m": self.clearance[b],
+            "min_separation_m": self.separation[b],
+            "centroid_error_m": self.centroid_error[b],
         }
 
     def summary(self) -> dict[str, Any]:
@@ -320,6 +379,7 @@ def simulate(
     seed: int | None = None,
     *,
     seeds: Iterable[int] | None = None,
+    keep_trajectories: bool = True,
     progress: Callable[[int], None] | None = None,
 ) -> MissionResult:
     """Run the mission of ``scenario`` for one seed or a batch of seeds.
@@ -333,6 +393,10 @@ def simulate(
     seeds : iterable of int, optional
         Seeds of a batch of independent runs (instead of ``seed``). Run ``b`` is
         bit-identical to ``simulate(scenario, seed=seeds[b])``.
+    keep_trajectories : bool, default True
+        Keep positions and velocities of every step. With ``False`` they are dropped after
+        each chunk of runs (``positions`` and ``velocities`` of the result are ``None``) and
+        memory stays at a few arrays of shape (B, K+1): use it for large campaigns.
     progress : callable, optional
         Called with the number of runs finished after each chunk of runs (for progress bars).
 
@@ -358,8 +422,12 @@ def simulate(
     adj, obstacles, ctl, eta = sc.adjacency, sc.obstacle_set, sc.control, sc.eta
     margin = ctl.safety_radius if eta.margin is None else eta.margin
 
-    positions = np.empty((n_runs, k_steps + 1, m_uavs, 2))
-    velocities = np.empty_like(positions)
+    traj_shape = (n_runs, k_steps + 1, m_uavs, 2)
+    positions = np.empty(traj_shape) if keep_trajectories else None
+    velocities = np.empty(traj_shape) if keep_trajectories else None
+    centroid = np.empty((n_runs, k_steps + 1, 2))
+    crlb_arr = np.empty((n_runs, k_steps + 1))
+    radar = sc.radar.to_radar()
     vref = np.empty((n_runs, k_steps + 1, 2))
     eta_arr = np.empty((n_runs, k_steps + 1))
     clearance = np.empty((n_runs, k_steps + 1))
@@ -367,18 +435,26 @@ def simulate(
     cost = np.empty((n_runs, k_steps))
     status = np.empty(n_runs, dtype=np.int64)
 
+    # Work buffers reused across chunks (page faults of fresh arrays cost as much as the work).
+    chunk_runs = min(CHUNK_RUNS, n_runs)
+    noise_buf = np.empty((chunk_runs, k_steps, m_uavs, 2))
+    if not keep_trajectories:
+        pos_buf = np.empty((chunk_runs, *traj_shape[1:]))
+        vel_buf = np.empty_like(pos_buf)
     for lo in range(0, n_runs, CHUNK_RUNS):
         hi = min(lo + CHUNK_RUNS, n_runs)
-        noise = np.empty((hi - lo, k_steps, m_uavs, 2))
+        pos = positions[lo:hi] if keep_trajectories else pos_buf[: hi - lo]
+        vel = velocities[lo:hi] if keep_trajectories else vel_buf[: hi - lo]
+        noise = noise_buf[: hi - lo]
         for i, s in enumerate(seed_arr[lo:hi]):
-            positions[lo + i, 0] = start_positions(sc, int(s))
+            pos[i, 0] = start_positions(sc, int(s))
             _, noise_rng = _streams(int(s))
             noise_rng.standard_normal(out=noise[i])
         noise *= sc.disturbance.sigma
-        velocities[lo:hi, 0] = 0.0
+        vel[:, 0] = 0.0
         eta_arr[lo:hi, 0] = 1.0
         _mission_batch(
-            positions[lo:hi], velocities[lo:hi], vref[lo:hi], eta_arr[lo:hi],
+            pos, vel, vref[lo:hi], eta_arr[lo:hi],
             clearance[lo:hi], separation[lo:hi], cost[lo:hi], status[lo:hi],
             noise, target, delta, sc.uavs.leader, adj.indptr, adj.indices, sc.time.step,
             ctl.epsilon, ctl.gamma, ctl.guidance_gain, ctl.cruise_speed,
@@ -394,10 +470,11 @@ def simulate(
                 f"(t = {status[b] * sc.time.step:g} s): NaN or positions beyond "
                 f"{DIVERGENCE_LIMIT:g} m; check the gains of the scenario"
             )
+        crlb_arr[lo:hi] = crlb(pos, target, sc.altitude, radar)
+        centroid[lo:hi] = pos.mean(axis=-2)
         if progress is not None:
             progress(hi)
 
-    radar = sc.radar.to_radar()
     return MissionResult(
         scenario=sc,
         seeds=seed_arr,
@@ -405,8 +482,9 @@ def simulate(
         positions=positions,
         velocities=velocities,
         reference_velocity=vref,
+        centroid=centroid,
         eta=eta_arr,
-        crlb=crlb(positions, target, sc.altitude, radar),
+        crlb=crlb_arr,
         cost=cost,
         clearance=clearance,
         separation=separation,
