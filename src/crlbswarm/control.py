@@ -413,9 +413,9 @@ def leader_guidance(
     center_xy: object = None,
     footprint: float = 0.0,
     obstacles: Obstacles | None = None,
-    repulsion_gain: float = 1.0,
-    safety_radius: float = 1.0,
-    dt: float = 1.0,
+    repulsion_gain: float = 2.0,
+    safety_radius: float = 5.0,
+    dt: float = 0.1,
 ) -> np.ndarray:
     r"""Leader's reference velocity :math:`\mathbf v^*_k` (not in the paper).
 
@@ -449,11 +449,11 @@ def leader_guidance(
         Radius :math:`\rho` of the formation's disc, m; 0 turns steering off.
     obstacles : Obstacles, optional
         Obstacles for the steering term.
-    repulsion_gain : float, default 1
-        :math:`E_r` of the steering term, m^3 per step.
-    safety_radius : float, default 1
-        :math:`l_\text{safe}` of the steering term, m.
-    dt : float, default 1
+    repulsion_gain : float, default 2
+        :math:`E_r` of the steering term, m^4 per step (the paper scenario's value).
+    safety_radius : float, default 5
+        :math:`l_\text{safe}` of the steering term, m (the paper's value).
+    dt : float, default 0.1
         Time step :math:`\Delta T`, s (turns the repulsive step into a velocity).
 
     Returns
@@ -576,7 +576,7 @@ def repulsion(
     obstacles : Obstacles
         Rectangles and circles.
     gain : float
-        Repulsion gain :math:`E_r`, m^3 (per step).
+        Repulsion gain :math:`E_r`, m^4 per step (so that :math:`\mathbf u^r` is in metres).
     safety_radius : float
         :math:`l_\text{safe}`, m.
     max_step : float, default inf
@@ -610,11 +610,16 @@ def eta_target(
     r"""Desired scaling factor from the free width ahead of the formation (not in the paper).
 
     The paper says only that :math:`\eta_k` "is adaptively reduced when the formation centre
-    approaches spatial bottlenecks". crlbswarm samples the segment from ``radius`` behind the
-    formation centre :math:`\mathbf c` to ``lookahead`` ahead of it, toward the target, takes
-    the smallest obstacle clearance :math:`w` along it (the free half-width of the corridor
-    the formation is about to use) and asks for the scale at which a formation of nominal
-    radius :math:`R` keeps ``margin`` from every obstacle:
+    approaches spatial bottlenecks". crlbswarm samples ``n_samples`` points on the segment
+    from ``radius`` behind the formation centre :math:`\mathbf c` to ``lookahead`` ahead of it,
+    toward the target. At each point it takes the largest obstacle clearance across the path
+    within :math:`\pm R` (9 points, spacing :math:`R/4`): the half-width of the corridor's
+    cross-section there, since the repulsion and the leader's steering centre the formation
+    in a passage (the sampling errs on the safe side: it can miss the widest point by up to
+    :math:`R/8`, so the formation shrinks slightly more than needed). The
+    smallest of these along the path is the free half-width :math:`w` of the corridor the
+    formation is about to use, and the rule asks for the scale at which a formation of
+    nominal radius :math:`R` keeps ``margin`` from every obstacle:
 
     .. math:: \eta^\text{goal} = \operatorname{clip}\bigl((w - \text{margin})/R,\;
               \eta_\min,\; 1\bigr).

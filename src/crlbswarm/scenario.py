@@ -142,11 +142,14 @@ class ControlConfig(_Model):
     """Gains of the control laws (Sec. IV; choices documented in docs/control.md)."""
 
     epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
-    gamma: PositiveFloat = Field(0.25, description="consensus step (< 1 / max degree)")
+    gamma: PositiveFloat = Field(
+        0.25,
+        description="consensus step (< 2/lambda_max(L_ff); <= 1/max degree: no overshoot)",
+    )
     guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
     cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
     safety_radius: PositiveFloat = Field(5.0, description="l_safe, m (paper: 5)")
-    repulsion_gain: PositiveFloat = Field(2.0, description="E_r, m^3 per step")
+    repulsion_gain: PositiveFloat = Field(2.0, description="E_r, m^4 per step (u^r is in metres)")
     repulsion_max_step: PositiveFloat = Field(1.0, description="cap on |u^r| per step, m")
     formation_steering: bool = Field(
         True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
@@ -157,7 +160,7 @@ class DisturbanceConfig(_Model):
     """Motion disturbance n_{m,k} ~ N(0, sigma^2 I), eq. (3)."""
 
     sigma: Annotated[float, Field(ge=0, allow_inf_nan=False)] = Field(
-        0.01, description="standard deviation per axis per step, m (paper: 0.01)"
+        0.01, description="standard deviation per axis per step, m (paper scenario: 0.01)"
     )
 
 
@@ -165,7 +168,8 @@ class GraphConfig(_Model):
     """Communication graph (see :func:`crlbswarm.communication_graph`)."""
 
     kind: Literal["ring", "complete", "path", "star", "random_geometric", "edges"] = Field(
-        "ring", description="ring (paper), complete, path, star, random_geometric or edges"
+        "ring",
+        description="ring (paper scenario), complete, path, star, random_geometric or edges",
     )
     radius: PositiveFloat | None = Field(None, description="random_geometric: link radius")
     seed: Annotated[int, Field(ge=0)] | None = Field(None, description="random_geometric seed")
