@@ -43,7 +43,9 @@ def _public_callables():
             elif inspect.isclass(obj):
                 yield f"{modname}.{name}", obj
                 for meth_name, meth in vars(obj).items():
-                    if inspect.isfunction(meth) and not meth_name.startswith("_"):
+                    if meth_name.startswith("_"):
+                        continue
+                    if inspect.isfunction(meth):
                         yield f"{modname}.{name}.{meth_name}", meth
                     elif isinstance(meth, classmethod):
                         yield f"{modname}.{name}.{meth_name}", meth.__func__

@@ -24,7 +24,15 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import tomlkit
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from .control import Obstacles
 from .design import optimal_formation
@@ -84,21 +92,40 @@ class UavsConfig(_Model):
         0.0, description="azimuth of the leader's slot in F*, seen from the target, deg"
     )
 
+    @field_validator("leader")
+    @classmethod
+    def _leader_in_range(cls, leader: int, info: ValidationInfo) -> int:
+        count = info.data.get("count")
+        if count is not None and leader >= count:
+            raise ValueError(f"must be a UAV index below count = {count}")
+        return leader
+
+    @field_validator("start_region")
+    @classmethod
+    def _region_ordered(cls, region: list[list[float]] | None) -> list[list[float]] | None:
+        if region is not None:
+            (x0, x1), (y0, y1) = region
+            if not all(map(math.isfinite, (x0, x1, y0, y1))) or x0 > x1 or y0 > y1:
+                raise ValueError("must be finite with x_min <= x_max and y_min <= y_max")
+        return region
+
+    @field_validator("start")
+    @classmethod
+    def _start_matches_count(
+        cls, start: list[list[float]] | None, info: ValidationInfo
+    ) -> list[list[float]] | None:
+        if start is not None:
+            count = info.data.get("count")
+            if count is not None and len(start) != count:
+                raise ValueError(f"has {len(start)} positions but count is {count}")
+            if not np.all(np.isfinite(start)):
+                raise ValueError("positions must be finite")
+        return start
+
     @model_validator(mode="after")
-    def _check(self) -> UavsConfig:
-        if self.leader >= self.count:
-            raise ValueError(f"leader must be a UAV index below count = {self.count}")
+    def _one_start(self) -> UavsConfig:
         if (self.start is None) == (self.start_region is None):
             raise ValueError("give exactly one of 'start' and 'start_region'")
-        if self.start is not None:
-            if len(self.start) != self.count:
-                raise ValueError(f"start has {len(self.start)} positions, count is {self.count}")
-            if not np.all(np.isfinite(self.start)):
-                raise ValueError("start positions must be finite")
-        if self.start_region is not None:
-            (x0, x1), (y0, y1) = self.start_region
-            if not all(map(math.isfinite, (x0, x1, y0, y1))) or x0 > x1 or y0 > y1:
-                raise ValueError("start_region must be finite with x_min <= x_max, y_min <= y_max")
         return self
 
 
@@ -125,12 +152,15 @@ class TimeConfig(_Model):
     step: PositiveFloat = Field(description="sampling interval dT, s")
     duration: PositiveFloat = Field(description="mission length, s (a whole number of steps)")
 
-    @model_validator(mode="after")
-    def _check(self) -> TimeConfig:
-        n = self.duration / self.step
-        if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
-            raise ValueError("duration must be a positive whole number of steps")
-        return self
+    @field_validator("duration")
+    @classmethod
+    def _whole_steps(cls, duration: float, info: ValidationInfo) -> float:
+        step = info.data.get("step")
+        if step is not None:
+            n = duration / step
+            if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
+                raise ValueError(f"must be a positive whole number of steps of {step:g} s")
+        return duration
 
     @property
     def steps(self) -> int:
@@ -288,14 +318,16 @@ class Scenario(_Model):
             adjacency = self.adjacency
         except ValueError as exc:
             raise _FieldError(*_split_field(str(exc), "graph")) from exc
-        eps_max = formation_step_limit(adjacency)
+        # A relative allowance: at the limit itself the error does not decay, and the
+        # computed eigenvalue may fall a rounding error short of it.
+        eps_max = formation_step_limit(adjacency) * (1.0 - 1e-12)
         if self.control.epsilon >= eps_max:
             raise _FieldError(
                 "control.epsilon",
                 f"{self.control.epsilon:g} is unstable on this graph (must be < "
                 f"2/lambda_max(L) = {eps_max:.4g})",
             )
-        gamma_max = consensus_step_limit(adjacency, self.uavs.leader)
+        gamma_max = consensus_step_limit(adjacency, self.uavs.leader) * (1.0 - 1e-12)
         if self.control.gamma >= gamma_max:
             raise _FieldError(
                 "control.gamma",
