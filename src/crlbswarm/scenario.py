@@ -16,10 +16,13 @@ message names the field.
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
+from collections.abc import Mapping
 from functools import cached_property
 from pathlib import Path
+from types import MappingProxyType
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -34,14 +37,9 @@ from pydantic import (
     model_validator,
 )
 
-from .control import Obstacles
+from .control import Obstacles, obstacle_clearance
 from .design import optimal_formation
-from .graphs import (
-    Adjacency,
-    communication_graph,
-    consensus_step_limit,
-    formation_step_limit,
-)
+from .graphs import Adjacency, communication_graph, formation_step_limit
 from .radar import Radar
 
 if sys.version_info >= (3, 11):
@@ -173,8 +171,7 @@ class ControlConfig(_Model):
 
     epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
     gamma: PositiveFloat = Field(
-        0.25,
-        description="consensus step (< 2/lambda_max(L_ff); <= 1/max degree: no overshoot)",
+        0.25, description="consensus step (< 1/max degree; ring: < 0.5)"
     )
     guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
     cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
@@ -206,7 +203,18 @@ class GraphConfig(_Model):
     edges: list[Annotated[list[int], Field(min_length=2, max_length=2)]] | None = Field(
         None, description="edges: explicit list of [m, p] pairs"
     )
-    center: Annotated[int, Field(ge=0)] = Field(0, description="star: index of the hub")
+    center: Annotated[int, Field(ge=0)] | None = Field(
+        None, description="star: index of the hub (default 0)"
+    )
+
+    @model_validator(mode="after")
+    def _options_fit_kind(self) -> GraphConfig:
+        wanted = {"random_geometric": {"radius", "seed"}, "edges": {"edges"}, "star": {"center"}}
+        allowed = wanted.get(self.kind, set())
+        for option in ("radius", "seed", "edges", "center"):
+            if getattr(self, option) is not None and option not in allowed:
+                raise ValueError(f"option '{option}' does not apply to kind '{self.kind}'")
+        return self
 
 
 class RectangleObstacle(_Model):
@@ -318,23 +326,56 @@ class Scenario(_Model):
             adjacency = self.adjacency
         except ValueError as exc:
             raise _FieldError(*_split_field(str(exc), "graph")) from exc
+        self._check_gains(adjacency)
+        clearance = obstacle_clearance(self.formation, obstacles) if obstacles.count else None
+        if clearance is not None and np.any(clearance <= self.control.safety_radius):
+            m = int(np.argmin(clearance))
+            raise _FieldError(
+                "target",
+                f"the slot of UAV {m} in F* over the target is {clearance[m]:.3g} m from an "
+                f"obstacle, within control.safety_radius = {self.control.safety_radius:g} m: "
+                "the formation could never settle there",
+            )
+        return self
+
+    def _check_gains(self, adjacency: Adjacency) -> None:
+        """Stability bounds of the linear laws and the step-size limits of the nonlinear ones."""
+        ctl, step = self.control, self.time.step
         # A relative allowance: at the limit itself the error does not decay, and the
         # computed eigenvalue may fall a rounding error short of it.
         eps_max = formation_step_limit(adjacency) * (1.0 - 1e-12)
-        if self.control.epsilon >= eps_max:
+        if ctl.epsilon >= eps_max:
             raise _FieldError(
                 "control.epsilon",
-                f"{self.control.epsilon:g} is unstable on this graph (must be < "
-                f"2/lambda_max(L) = {eps_max:.4g})",
+                f"{ctl.epsilon:g} is unstable on this graph (must be < {eps_max:.4g}, "
+                "2/lambda_max(L))",
             )
-        gamma_max = consensus_step_limit(adjacency, self.uavs.leader) * (1.0 - 1e-12)
-        if self.control.gamma >= gamma_max:
+        max_degree = int(adjacency.degrees.max())
+        if ctl.gamma * max_degree >= 1.0:
             raise _FieldError(
                 "control.gamma",
-                f"{self.control.gamma:g} is unstable on this graph (must be < "
-                f"2/lambda_max(L_ff) = {gamma_max:.4g})",
+                f"{ctl.gamma:g} is too large for this graph: it must be < 1/max degree = "
+                f"{1.0 / max_degree:.4g} (for example {0.5 / max_degree:.4g})",
             )
-        return self
+        if ctl.guidance_gain * step >= 1.0:
+            raise _FieldError(
+                "control.guidance_gain",
+                f"guidance_gain x time.step = {ctl.guidance_gain * step:g} must be < 1, or the "
+                "leader overshoots its goal",
+            )
+        if ctl.cruise_speed * step >= ctl.repulsion_max_step:
+            raise _FieldError(
+                "control.repulsion_max_step",
+                f"{ctl.repulsion_max_step:g} m must exceed cruise_speed x time.step = "
+                f"{ctl.cruise_speed * step:g} m, or the repulsion cannot stop a cruising UAV "
+                "at an obstacle",
+            )
+        if ctl.repulsion_max_step >= ctl.safety_radius:
+            raise _FieldError(
+                "control.repulsion_max_step",
+                f"{ctl.repulsion_max_step:g} m must be below control.safety_radius = "
+                f"{ctl.safety_radius:g} m",
+            )
 
     # -- derived objects -----------------------------------------------------------------
     @cached_property
@@ -349,20 +390,27 @@ class Scenario(_Model):
         """The communication graph as CSR adjacency."""
         g = self.graph
         graph = communication_graph(
-            g.kind, self.uavs.count, radius=g.radius, seed=g.seed, edges=g.edges, center=g.center
+            g.kind,
+            self.uavs.count,
+            radius=g.radius,
+            seed=g.seed,
+            edges=g.edges,
+            center=0 if g.center is None else g.center,
         )
         return Adjacency.from_graph(graph)
 
     @cached_property
     def formation(self) -> np.ndarray:
-        """The CRLB-optimal formation F* over the target, shape (M, 2), m."""
-        return optimal_formation(
+        """The CRLB-optimal formation F* over the target, shape (M, 2), m (read-only)."""
+        f = optimal_formation(
             self.uavs.count,
             np.asarray(self.target),
             self.altitude,
             self.radar.to_radar(),
             rotation=math.radians(self.uavs.rotation_deg),
         )
+        f.flags.writeable = False
+        return f
 
     # -- TOML ------------------------------------------------------------------------------
     @classmethod
@@ -412,8 +460,6 @@ class Scenario(_Model):
             return cls.model_validate(data)
         except ValidationError as exc:
             raise ScenarioError(f"{source}: {_describe(exc)}") from None
-        except _FieldError as exc:
-            raise ScenarioError(f"{source}: {exc}") from None
 
     def to_toml(self) -> str:
         """The scenario as a TOML document, each field commented with its meaning and unit.
@@ -489,8 +535,6 @@ _TAGS = ("rectangle", "circle")
 
 
 def _check_outside(obstacles: Obstacles, points: np.ndarray, field: str) -> None:
-    from .control import obstacle_clearance
-
     if obstacles.count == 0:
         return
     clearance = obstacle_clearance(points, obstacles)
@@ -527,8 +571,10 @@ _PAPER = {
     ],
 }
 
-#: Built-in scenarios by name (dictionaries as read from TOML).
-BUILTIN_SCENARIOS: dict[str, dict[str, Any]] = {"paper": _PAPER}
+_BUILTINS: dict[str, dict[str, Any]] = {"paper": _PAPER}
+
+#: Built-in scenarios by name (read-only view; :func:`load_scenario` uses private copies).
+BUILTIN_SCENARIOS: Mapping[str, dict[str, Any]] = MappingProxyType(copy.deepcopy(_BUILTINS))
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
@@ -550,8 +596,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         If there is no such scenario or file, or it is invalid (one line naming the field).
     """
     key = str(name_or_path)
-    if key in BUILTIN_SCENARIOS:
-        return Scenario.from_dict(BUILTIN_SCENARIOS[key], source=f"scenario '{key}'")
+    if key in _BUILTINS:
+        return Scenario.from_dict(copy.deepcopy(_BUILTINS[key]), source=f"scenario '{key}'")
     path = Path(name_or_path)
     if not path.is_file():
         known = ", ".join(sorted(BUILTIN_SCENARIOS))
