@@ -266,8 +266,8 @@ def test_same_seed_twice_identical_and_seeds_differ(paper, batch6):
 
 
 def test_batch_order_and_chunking_do_not_matter(paper, batch6, monkeypatch):
-    """Seeds in another order give the same runs reordered; chunks of 4 runs (instead of
-    256) give the same bits, and progress is reported after each chunk."""
+    """Seeds in another order give the same runs reordered; chunks of at most 4 runs
+    (instead of 256) give the same bits, and progress is reported after each chunk."""
     sc, _ = paper
     order = [4, 1, 5, 0, 3, 2]
     shuffled = simulate(sc, seeds=order)
@@ -277,7 +277,9 @@ def test_batch_order_and_chunking_do_not_matter(paper, batch6, monkeypatch):
     monkeypatch.setattr(simulation_module, "CHUNK_RUNS", 4)
     calls = []
     chunked = simulate(sc, seeds=range(6), progress=calls.append)
-    assert calls == [4, 6]
+    assert calls[-1] == 6
+    assert np.all(np.diff([0, *calls]) >= 1)
+    assert np.all(np.diff([0, *calls]) <= 4)
     for name in ARRAYS:
         assert np.array_equal(getattr(chunked, name), getattr(batch6, name)), name
     numpy_seeds = simulate(sc, seeds=np.arange(6))

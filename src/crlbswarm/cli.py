@@ -9,7 +9,6 @@ file is written, and every file is written atomically (:mod:`crlbswarm.output`).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from collections.abc import Sequence
@@ -21,8 +20,9 @@ import numpy as np
 from . import __version__
 from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
 from .fisher import crlb
+from .output import json_text
 from .radar import Radar, db_to_linear, dbm_to_watts
-from .simulation import SimulationDivergedError
+from .simulation import MAX_SEED, SimulationDivergedError
 
 __all__ = ["main"]
 
@@ -239,6 +239,7 @@ def format_design(report: dict) -> str:
 
 #: Library argument names and the CLI options that set them, for error messages.
 _OPTION_NAMES = {
+    "seeds": "--runs",
     "n_uavs": "--uavs",
     "altitude": "--altitude",
     "target_xy": "--target",
@@ -268,11 +269,24 @@ def _cmd_design(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise _as_option_error(exc) from exc
-    print(json.dumps(report, indent=2) if args.json else format_design(report))
+    print(json_text(report) if args.json else format_design(report))
     return 0
 
 
 # -- figures -----------------------------------------------------------------------------
+def _check_out(out: Path) -> None:
+    """Fail early, without creating anything, if ``out`` could not be created or written."""
+    probe = out
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UsageError(f"--out: {str(probe)!r} exists and is not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(f"--out: cannot write in {str(probe)!r}")
+
+
 def _make_out(out: Path) -> Path:
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -326,7 +340,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
         "fig4_crlb_and_cost": {
             "what": "CRLB, bound, cost eq. (15), eta and clearance vs time, scenario 'paper'",
             "seed": args.seed,
-            "metrics": {k: float(v[0]) for k, v in mission.metrics.items()},
+            "metrics": {k: v[0].item() for k, v in mission.metrics.items()},
         },
         "files": [],
     }
@@ -371,21 +385,31 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .scenario import load_scenario
     from .simulation import simulate
 
-    # Validate everything before running anything.
+    # Validate everything before running anything; create the folder only after the run.
     scenario = load_scenario(args.scenario)
     _v_seed(args.seed)
+    if args.seed > MAX_SEED:
+        raise UsageError(f"--seed: must be below 2**63, got {args.seed}")
     if args.runs < 1:
         raise UsageError(f"--runs: must be >= 1, got {args.runs}")
-    out = _make_out(args.out)
+    if args.seed + args.runs - 1 > MAX_SEED:
+        raise UsageError(
+            f"--runs: seeds must stay below 2**63, got up to {args.seed + args.runs - 1}"
+        )
+    _check_out(args.out)
 
     seeds = range(args.seed, args.seed + args.runs)
     with tqdm(total=args.runs, unit="run", disable=None, file=sys.stderr) as bar:
-        result = simulate(
-            scenario,
-            seeds=seeds,
-            keep_trajectories=not args.no_trajectories,
-            progress=lambda done: bar.update(done - bar.n),
-        )
+        try:
+            result = simulate(
+                scenario,
+                seeds=seeds,
+                keep_trajectories=not args.no_trajectories,
+                progress=lambda done: bar.update(done - bar.n),
+            )
+        except ValueError as exc:
+            raise _as_option_error(exc) from exc
+    out = _make_out(args.out)
     arrays = {
         "time": result.time,
         "seeds": result.seeds,
@@ -403,15 +427,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if result.positions is not None:
         arrays["positions"] = result.positions
         arrays["velocities"] = result.velocities
+    # Each file is written atomically; summary.json comes last and marks a complete set.
     with atomic_path(out / "trajectories.npz") as tmp:
         np.savez(tmp, **arrays)
     write_csv(out / "metrics.csv", result.metrics)
+    write_text(out / "scenario.toml", scenario.to_toml())
     summary = result.summary()
     summary["seeds"] = {"first": int(seeds[0]), "last": int(seeds[-1])}
     summary["crlbswarm_version"] = __version__
     write_json(out / "summary.json", summary)
-    write_text(out / "scenario.toml", scenario.to_toml())
-    for name in ("trajectories.npz", "metrics.csv", "summary.json", "scenario.toml"):
+    for name in ("trajectories.npz", "metrics.csv", "scenario.toml", "summary.json"):
         print(f"wrote {out / name}")
     return 0
 

@@ -78,9 +78,8 @@ def information_weight(
     h = _v.positive(altitude, "altitude")
     a = radar.snr_constant
     _v.broadcast("radar", np.shape(a), _v.broadcast("altitude", phi.shape, h.shape))
-    s2 = np.sin(phi) ** 2
-    h2 = h * h
-    return (a * s2 * s2 / (h2 * h2) + 8.0 * s2 / h2) * np.cos(phi) ** 2
+    r = np.sin(phi) ** 2 / h / h  # sin^2(phi) / H^2 = 1 / d^2, formed without overflow
+    return (a * r * r + 8.0 * r) * np.cos(phi) ** 2
 
 
 def _tan2_optimal(altitude: object, radar: Radar) -> tuple[np.ndarray, np.ndarray]:

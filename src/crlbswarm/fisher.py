@@ -81,7 +81,7 @@ def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.nda
     a = radar.snr_constant
     _v.broadcast("radar", np.shape(a), d.shape)
     d2 = d * d
-    return a / (d2 * d2) + 8.0 / d2
+    return a / d2 / d2 + 8.0 / d2
 
 
 def _check_radar(radar: Radar, n_uavs: int) -> np.ndarray | float:
@@ -175,25 +175,35 @@ def _inverse_figures(
     """``(trace, det, lambda_max, singular)`` of a batch of symmetric 2x2 matrices."""
     tr = jxx + jyy
     det = jxx * jyy - jxy * jxy
-    singular = ~(det > SINGULAR_RTOL * tr * tr)
+    # The singularity test on the trace-normalised matrix, det(J)/tr(J)^2, so that it neither
+    # underflows nor overflows for FIMs of extreme magnitude.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(tr > 0, 1.0 / tr, 0.0)
+        nxx, nyy, nxy = jxx * scale, jyy * scale, jxy * scale
+        singular = ~(nxx * nyy - nxy * nxy > SINGULAR_RTOL) | ~(det > 0)
     lam_max = 0.5 * tr + np.hypot(0.5 * (jxx - jyy), jxy)
     return tr, np.where(singular, 1.0, det), lam_max, singular
 
 
+# The quotients below may overflow to +inf for matrices of extreme magnitude: that is the
+# right answer, so the overflow warning is silenced.
 def _a_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
     tr, det, _, singular = _inverse_figures(jxx, jyy, jxy)
-    return np.where(singular, np.inf, tr / det)
+    with np.errstate(over="ignore"):
+        return np.where(singular, np.inf, tr / det)
 
 
 def _d_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
     _, det, _, singular = _inverse_figures(jxx, jyy, jxy)
-    return np.where(singular, np.inf, 1.0 / det)
+    with np.errstate(over="ignore"):
+        return np.where(singular, np.inf, 1.0 / det)
 
 
 def _e_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
     # lambda_max(J^-1) = 1 / lambda_min(J) = lambda_max(J) / det(J): no cancellation.
     _, det, lam_max, singular = _inverse_figures(jxx, jyy, jxy)
-    return np.where(singular, np.inf, lam_max / det)
+    with np.errstate(over="ignore"):
+        return np.where(singular, np.inf, lam_max / det)
 
 
 def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -201,7 +211,14 @@ def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if j.ndim < 2 or j.shape[-2:] != (2, 2):
         raise ValueError(f"fim: expected shape (..., 2, 2), got {j.shape}")
     _v.check_finite(j, "fim")
-    return j[..., 0, 0], j[..., 1, 1], 0.5 * (j[..., 0, 1] + j[..., 1, 0])
+    jxx, jyy = j[..., 0, 0], j[..., 1, 1]
+    jxy = 0.5 * (j[..., 0, 1] + j[..., 1, 0])
+    scale = np.maximum(np.abs(jxx) + np.abs(jyy), np.finfo(float).tiny)
+    asym = np.abs(j[..., 0, 1] - j[..., 1, 0]) > 1e-9 * scale
+    not_psd = (jxx < 0) | (jyy < 0) | (jxx * jyy - jxy * jxy < -1e-9 * scale * scale)
+    if np.any(asym) or np.any(not_psd):
+        raise ValueError("fim: must be symmetric positive semi-definite")
+    return jxx, jyy, jxy
 
 
 def crlb_from_fim(fim: object) -> np.ndarray:

@@ -21,7 +21,7 @@ from typing import IO, Any
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["atomic_path", "save_figure", "write_csv", "write_json", "write_text"]
+__all__ = ["atomic_path", "json_text", "save_figure", "write_csv", "write_json", "write_text"]
 
 
 @contextlib.contextmanager
@@ -100,8 +100,37 @@ def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     write_text(path, _csv_text(columns))
 
 
+def _json_safe(data: Any) -> Any:
+    """Replace NaN and infinities (not valid JSON) by ``None``, recursively."""
+    if isinstance(data, dict):
+        return {k: _json_safe(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [_json_safe(v) for v in data]
+    if isinstance(data, float | np.floating):
+        return float(data) if np.isfinite(data) else None
+    if isinstance(data, np.integer):
+        return int(data)
+    return data
+
+
+def json_text(data: Any) -> str:
+    """Indented, strictly valid JSON: NaN and infinities become ``null``.
+
+    Parameters
+    ----------
+    data : object
+        Dictionaries, lists, strings, numbers (NumPy scalars included), booleans, None.
+
+    Returns
+    -------
+    str
+        The JSON text, ending with a newline.
+    """
+    return json.dumps(_json_safe(data), indent=2, allow_nan=False) + "\n"
+
+
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
-    """Write ``data`` as indented JSON atomically.
+    """Write ``data`` as indented JSON atomically (NaN and infinities become ``null``).
 
     Parameters
     ----------
@@ -110,7 +139,7 @@ def write_json(path: str | os.PathLike[str], data: Any) -> None:
     data : object
         JSON-serialisable data.
     """
-    write_text(path, json.dumps(data, indent=2) + "\n")
+    write_text(path, json_text(data))
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> None:

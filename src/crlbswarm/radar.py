@@ -165,7 +165,13 @@ class Radar:
                 "radar: per-UAV fields must all have the same length, "
                 f"got lengths {sorted(lengths)}"
             )
-        a = self.tx_power * self.processing_gain * self.beta0 / (self.kappa * self.noise_power)
+        with np.errstate(over="ignore", under="ignore"):
+            a = self.tx_power * self.processing_gain * self.beta0 / (self.kappa * self.noise_power)
+        if not np.all(np.isfinite(a) & (np.asarray(a) > 0)):
+            raise ValueError(
+                "radar: A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number "
+                f"({a!r}); the parameters are out of range"
+            )
         a = float(a) if np.ndim(a) == 0 else _readonly(a)
         object.__setattr__(self, "_snr_constant", a)
 

@@ -64,6 +64,10 @@ __all__ = [
 ]
 
 
+#: Largest number of time steps of a mission.
+MAX_STEPS = 10_000_000
+
+
 class ScenarioError(ValueError):
     """An invalid scenario; the message is one line naming the field and the reason."""
 
@@ -158,6 +162,8 @@ class TimeConfig(_Model):
             n = duration / step
             if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
                 raise ValueError(f"must be a positive whole number of steps of {step:g} s")
+            if n > MAX_STEPS:
+                raise ValueError(f"is {n:.3g} steps of {step:g} s; at most {MAX_STEPS:g} allowed")
         return duration
 
     @property
@@ -170,9 +176,7 @@ class ControlConfig(_Model):
     """Gains of the control laws (Sec. IV; choices documented in docs/control.md)."""
 
     epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
-    gamma: PositiveFloat = Field(
-        0.25, description="consensus step (< 1/max degree; ring: < 0.5)"
-    )
+    gamma: PositiveFloat = Field(0.25, description="consensus step (< 1/max degree; ring: < 0.5)")
     guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
     cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
     safety_radius: PositiveFloat = Field(5.0, description="l_safe, m (paper: 5)")

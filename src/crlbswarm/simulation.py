@@ -2,8 +2,9 @@ r"""Mission simulator: the distributed controller of Sec. IV, run for a batch of
 
 :func:`simulate` runs a :class:`~crlbswarm.scenario.Scenario` from its start to the end of its
 duration for one seed or a batch of seeds at once. Per step :math:`k` (all UAVs in parallel,
-each using only its neighbours' information, except the globally broadcast
-:math:`\eta_k`, as in the paper):
+each using only its neighbours' information, except two formation-wide quantities: the
+scaling factor :math:`\eta_k`, global in the paper too, and the formation centroid that
+the leader uses to steer the formation off obstacles, a crlbswarm addition):
 
 1. the leader computes its reference velocity :math:`\mathbf v^*_k` toward its slot of
    :math:`F^*` over the target (:func:`crlbswarm.leader_guidance`);
@@ -24,6 +25,7 @@ for the start positions and one for the motion disturbance.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -54,8 +56,17 @@ DIVERGENCE_LIMIT = 1.0e6
 CRLB_TOL = 0.01
 CENTROID_TOL = 0.5
 
-#: Runs simulated per chunk (bounds the memory of the pre-drawn disturbance).
+#: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
+
+#: Memory budget of the per-chunk work buffers (pre-drawn disturbance), bytes.
+CHUNK_BYTES = 64 * 2**20
+
+#: Largest seed (seeds are stored as int64).
+MAX_SEED = 2**63 - 1
+
+#: Fraction of the machine's memory that the kept trajectories may take.
+MEMORY_FRACTION = 0.5
 
 
 class SimulationDivergedError(RuntimeError):
@@ -369,9 +380,33 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
     values = [0 if seed is None else seed] if seeds is None else list(seeds)
     if not values:
         raise ValueError("seeds: need at least one seed")
+    name = "seeds" if seeds is not None else "seed"
     for s in values:
-        _v.count(s, "seeds" if seeds is not None else "seed", 0)
+        _v.count(s, name, 0)
+        if s > MAX_SEED:
+            raise ValueError(f"{name}: must be at most 2**63 - 1, got {s}")
     return np.array(values, dtype=np.int64)
+
+
+def _physical_memory() -> int | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
+        return None
+
+
+def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
+    """Refuse, naming the cause, a batch whose arrays could not fit in memory."""
+    series = n_runs * (k_steps + 1) * 8 * 8  # eta, crlb, cost, clearance, ... per step
+    trajectories = 2 * n_runs * (k_steps + 1) * m_uavs * 2 * 8 if keep else 0
+    total = series + trajectories
+    limit = _physical_memory()
+    if limit is not None and total > MEMORY_FRACTION * limit:
+        hint = "keep_trajectories=False (--no-trajectories) or fewer" if keep else "fewer"
+        raise ValueError(
+            f"seeds: {n_runs} runs of {k_steps} steps need about {total / 2**30:.1f} GiB, more "
+            f"than half of this machine's {limit / 2**30:.0f} GiB; use {hint} runs per call"
+        )
 
 
 def simulate(
@@ -423,6 +458,7 @@ def simulate(
     margin = ctl.safety_radius if eta.margin is None else eta.margin
 
     traj_shape = (n_runs, k_steps + 1, m_uavs, 2)
+    _check_memory(n_runs, k_steps, m_uavs, keep_trajectories)
     positions = np.empty(traj_shape) if keep_trajectories else None
     velocities = np.empty(traj_shape) if keep_trajectories else None
     centroid = np.empty((n_runs, k_steps + 1, 2))
@@ -435,14 +471,17 @@ def simulate(
     cost = np.empty((n_runs, k_steps))
     status = np.empty(n_runs, dtype=np.int64)
 
-    # Work buffers reused across chunks (page faults of fresh arrays cost as much as the work).
-    chunk_runs = min(CHUNK_RUNS, n_runs)
+    # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of disturbance, and at least ~20 chunks
+    # for long batches so that progress is reported often. Work buffers are reused across
+    # chunks (page faults of fresh arrays cost as much as the work).
+    per_run = k_steps * m_uavs * 2 * 8
+    chunk_runs = max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
     noise_buf = np.empty((chunk_runs, k_steps, m_uavs, 2))
     if not keep_trajectories:
         pos_buf = np.empty((chunk_runs, *traj_shape[1:]))
         vel_buf = np.empty_like(pos_buf)
-    for lo in range(0, n_runs, CHUNK_RUNS):
-        hi = min(lo + CHUNK_RUNS, n_runs)
+    for lo in range(0, n_runs, chunk_runs):
+        hi = min(lo + chunk_runs, n_runs)
         pos = positions[lo:hi] if keep_trajectories else pos_buf[: hi - lo]
         vel = velocities[lo:hi] if keep_trajectories else vel_buf[: hi - lo]
         noise = noise_buf[: hi - lo]
