@@ -577,7 +577,7 @@ def test_eta_target_paper_path_shrinks_and_recovers():
 
 
 @settings(max_examples=200)
-@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.01, 1.0), st.floats(0.01, 0.5))
+@given(st.floats(1e-6, 1.0), st.floats(1e-6, 1.0), st.floats(0.01, 1.0), st.floats(0.01, 0.5))
 def test_eta_update_rate_limit(eta, goal, rate, dt):
     new = float(eta_update(eta, goal, rate, dt))
     assert abs(new - eta) <= rate * dt * (1 + 1e-12)
@@ -1041,3 +1041,21 @@ def test_inputs_are_never_modified(batch_case, make_readonly):
     )
     for key in w:
         np.testing.assert_array_equal(w[key], ctl[key])
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: Obstacles([[0.0, 1.0], [0.0, 1.0]]), "rectangles"),
+        (lambda: Obstacles(circles=[[0.0, 0.0, 1.0, 2.0]]), "circles"),
+        (lambda: obstacle_clearance([0.0, 0.0], [[0.0, 1.0, 0.0, 1.0]]), "obstacles"),
+        (lambda: repulsion([0.5, 1.2], Obstacles([[0, 1, 0, 1]]), 1.0, 5.0, np.nan), "max_step"),
+        (lambda: repulsion([0.5, 1.2], Obstacles([[0, 1, 0, 1]]), 1.0, 5.0, -1.0), "max_step"),
+        (lambda: eta_update(0.5, 5.0, 1.0, 0.1), "goal"),
+        (lambda: eta_update(0.0, 0.5, 1.0, 0.1), "eta"),
+    ],
+)
+def test_bad_arguments_name_themselves(call, name):
+    """Wrong types, shapes and out-of-range values raise ValueError naming the argument."""
+    with pytest.raises(ValueError, match=rf"^{name}"):
+        call()

@@ -531,3 +531,17 @@ def test_fim_is_symmetric_positive_semidefinite(seed, n_uavs, ref):
     np.testing.assert_allclose(
         np.trace(fim), ref.information_weight(phi, altitude, a).sum(), rtol=1e-12
     )
+
+
+@pytest.mark.parametrize("fim", [-np.eye(2), [[1.0, 2.0], [2.0, 1.0]], [[1.0, 0.5], [0.0, 1.0]]])
+def test_from_fim_rejects_matrices_that_are_not_fims(fim):
+    """A FIM is symmetric positive semi-definite; anything else is an input error."""
+    for fn in (crlb_from_fim, d_optimality_from_fim, e_optimality_from_fim):
+        with pytest.raises(ValueError, match=r"^fim"):
+            fn(fim)
+
+
+def test_extreme_but_finite_fims_give_inf_without_warning():
+    """Determinants that underflow give +inf (the true value overflows anyway), silently."""
+    assert crlb_from_fim(np.eye(2) * 1e-300) == np.inf
+    assert crlb_from_fim(np.zeros((2, 2))) == np.inf

@@ -311,3 +311,8 @@ def test_random_connected_graphs(graph_spec, data):
     keep = [i for i in range(n) if i != leader]
     lam_ff = np.linalg.eigvalsh(lap[np.ix_(keep, keep)])[-1]
     assert consensus_step_limit(adj, leader) == pytest.approx(2.0 / lam_ff, rel=1e-12)
+
+
+def test_explicit_edges_must_be_integers():
+    with pytest.raises(ValueError, match=r"^graph\.edges\[0\]"):
+        communication_graph("edges", 3, edges=[[0, 1.7], [1, 2]])

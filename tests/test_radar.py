@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -226,3 +227,22 @@ def test_empty_per_uav_field_is_rejected():
     """A per-UAV field needs at least one UAV."""
     with pytest.raises(ValueError, match=r"^radar\.tx_power"):
         Radar(tx_power=[])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"tx_power": "0.1"}, "radar.tx_power"),
+        ({"rcs": True}, "radar.rcs"),
+        ({"tx_power": 1e300, "noise_power": 1e-300}, "radar"),
+    ],
+)
+def test_non_numbers_and_overflowing_constants_are_rejected(kwargs, name):
+    """Strings and booleans are not powers; a constant A that overflows is out of range."""
+    with pytest.raises(ValueError, match=rf"^{re.escape(name)}"):
+        Radar(**kwargs)
+
+
+def test_from_db_out_of_range_names_the_db_argument():
+    with pytest.raises(ValueError, match=r"^radar\.tx_power_dbm"):
+        Radar.from_db(tx_power_dbm=1e4)

@@ -59,6 +59,24 @@ __all__ = [
 # ---------------------------------------------------------------------------------------
 # Obstacles
 # ---------------------------------------------------------------------------------------
+def _rows(value: object, name: str, width: int) -> np.ndarray:
+    """A finite ``(n, width)`` array; an empty input gives ``(0, width)``."""
+    arr = _v.as_float_array(value, name)
+    if arr.size == 0:
+        return np.empty((0, width))
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise ValueError(f"{name}: expected shape (n, {width}), got {arr.shape}")
+    return _v.check_finite(arr, name)
+
+
+def _check_obstacles(obstacles: object) -> Obstacles:
+    if not isinstance(obstacles, Obstacles):
+        raise ValueError(
+            f"obstacles: expected a crlbswarm.Obstacles, got {type(obstacles).__name__}"
+        )
+    return obstacles
+
+
 @dataclass(frozen=True, eq=False)
 class Obstacles:
     """Axis-aligned rectangles and circles in the horizontal plane.
@@ -76,10 +94,8 @@ class Obstacles:
     circles: np.ndarray
 
     def __init__(self, rectangles: object = (), circles: object = ()) -> None:
-        rects = _v.finite(
-            np.reshape(_v.as_float_array(rectangles, "rectangles"), (-1, 4)), "rectangles"
-        )
-        circs = _v.finite(np.reshape(_v.as_float_array(circles, "circles"), (-1, 3)), "circles")
+        rects = _rows(rectangles, "rectangles", 4)
+        circs = _rows(circles, "circles", 3)
         if np.any(rects[:, 0] >= rects[:, 1]) or np.any(rects[:, 2] >= rects[:, 3]):
             raise ValueError("rectangles: need x_min < x_max and y_min < y_max")
         if np.any(circs[:, 2] <= 0):
@@ -347,12 +363,34 @@ def _flat(arr: np.ndarray, batch: tuple[int, ...], tail: tuple[int, ...]) -> np.
 
 
 def _formation_arrays(q: object, name: str, adjacency: Adjacency) -> np.ndarray:
+    if not isinstance(adjacency, Adjacency):
+        raise ValueError(
+            f"adjacency: expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
+        )
     arr = _v.positions(q, name)
     if arr.shape[-2] != adjacency.n_nodes:
         raise ValueError(
             f"{name}: has {arr.shape[-2]} UAVs but the graph has {adjacency.n_nodes} nodes"
         )
     return arr
+
+
+def _slot_offsets(delta: object, adjacency: Adjacency) -> np.ndarray:
+    d = _formation_arrays(delta, "delta", adjacency)
+    if d.ndim != 2:
+        raise ValueError(f"delta: expected shape (M, 2), got {d.shape}")
+    return np.ascontiguousarray(d)
+
+
+def _scale(eta: object, name: str) -> np.ndarray:
+    e = _v.finite(eta, name)
+    if np.any((e <= 0) | (e > 1)):
+        raise ValueError(f"{name}: must lie in (0, 1], got {eta!r}")
+    return e
+
+
+def _is_inf(value: object) -> bool:
+    return isinstance(value, float | int | np.floating) and value == math.inf
 
 
 def _check_leader(leader: int, n: int) -> int:
@@ -468,7 +506,7 @@ def leader_guidance(
     rho = float(_v.finite(footprint, "footprint"))
     if rho < 0:
         raise ValueError(f"footprint: must be >= 0, got {footprint!r}")
-    obs = obstacles if obstacles is not None else Obstacles()
+    obs = _check_obstacles(obstacles) if obstacles is not None else Obstacles()
     c = q if center_xy is None else _v.point(center_xy, "center_xy")
     if rho > 0 and (center_xy is None or obstacles is None):
         raise ValueError("footprint: steering needs center_xy and obstacles")
@@ -516,10 +554,8 @@ def formation_input(
         Position increment per step, m.
     """
     q = _formation_arrays(positions, "positions", adjacency)
-    d = _formation_arrays(delta, "delta", adjacency)
-    if d.ndim != 2:
-        raise ValueError(f"delta: expected shape (M, 2), got {d.shape}")
-    e = _v.positive(eta, "eta")
+    d = _slot_offsets(delta, adjacency)
+    e = _scale(eta, "eta")
     eps = float(_v.positive(epsilon, "epsilon"))
     shape = _v.broadcast("eta", q.shape[:-2], e.shape)
     qb = _flat(q, shape, q.shape[-2:])
@@ -549,7 +585,8 @@ def obstacle_clearance(positions: object, obstacles: Obstacles) -> np.ndarray:
     q = _v.point(positions, "positions")
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty(qb.shape[0])
-    _clearance_batch(qb, obstacles.rectangles, obstacles.circles, out)
+    obs = _check_obstacles(obstacles)
+    _clearance_batch(qb, obs.rectangles, obs.circles, out)
     return out.reshape(q.shape[:-1])
 
 
@@ -590,10 +627,13 @@ def repulsion(
     q = _v.point(positions, "positions")
     e_r = float(_v.positive(gain, "gain"))
     l_safe = float(_v.positive(safety_radius, "safety_radius"))
-    cap = float(_v.positive(max_step, "max_step")) if math.isfinite(max_step) else math.inf
+    cap = _v.scalar(max_step, "max_step") if not _is_inf(max_step) else math.inf
+    if not cap > 0:
+        raise ValueError(f"max_step: must be > 0 (inf for no cap), got {max_step!r}")
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty_like(qb)
-    _repulsion_batch(qb, obstacles.rectangles, obstacles.circles, e_r, l_safe, cap, out)
+    obs = _check_obstacles(obstacles)
+    _repulsion_batch(qb, obs.rectangles, obs.circles, e_r, l_safe, cap, out)
     return out.reshape(q.shape)
 
 
@@ -666,7 +706,8 @@ def eta_target(
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))
     out = np.empty(cb.shape[0])
-    _eta_goal_batch(cb, sb, r, obstacles.rectangles, obstacles.circles, mrg, look, n, lo, out)
+    obs = _check_obstacles(obstacles)
+    _eta_goal_batch(cb, sb, r, obs.rectangles, obs.circles, mrg, look, n, lo, out)
     return out.reshape(shape[:-1])
 
 
@@ -692,8 +733,8 @@ def eta_update(eta: object, goal: object, rate: float, dt: float) -> np.ndarray:
     ndarray
         :math:`\eta_{k+1}`.
     """
-    e = _v.finite(eta, "eta")
-    g = _v.finite(goal, "goal")
+    e = _scale(eta, "eta")
+    g = _scale(goal, "goal")
     step = float(_v.positive(rate, "rate")) * float(_v.positive(dt, "dt"))
     return e + np.clip(g - e, -step, step)
 
@@ -738,7 +779,7 @@ def formation_cost(
     """
     q = _formation_arrays(positions, "positions", adjacency)
     qn = _formation_arrays(next_positions, "next_positions", adjacency)
-    d = _formation_arrays(delta, "delta", adjacency)
+    d = _slot_offsets(delta, adjacency)
     ref = _v.point(v_ref, "v_ref")
     step = float(_v.positive(dt, "dt"))
     shape = _v.broadcast("next_positions", q.shape[:-2], qn.shape[:-2], ref.shape[:-1])

@@ -161,8 +161,10 @@ def crlb_vs_altitude(
         raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
     if radar.per_uav:
         raise ValueError("radar: crlb_vs_altitude needs scalar radar fields")
-    _v.positive(disc_factor, "disc_factor")
-    _v.positive(fixed_radius, "fixed_radius")
+    if _v.scalar(disc_factor, "disc_factor") <= 0:
+        raise ValueError(f"disc_factor: must be > 0, got {disc_factor!r}")
+    if _v.scalar(fixed_radius, "fixed_radius") <= 0:
+        raise ValueError(f"fixed_radius: must be > 0, got {fixed_radius!r}")
     span = _v.scalar(arc_span, "arc_span")
     if not 0.0 < span <= np.pi:
         raise ValueError(f"arc_span: must lie in (0, pi], got {arc_span!r}")

@@ -22,6 +22,7 @@ Stability of the two discrete-time linear laws (not in the paper; standard resul
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import networkx as nx
@@ -177,6 +178,8 @@ def communication_graph(
         for i, edge in enumerate(edges):
             if len(edge) != 2:
                 raise ValueError(f"graph.edges[{i}]: expected a pair [m, p], got {edge!r}")
+            if not all(isinstance(x, numbers.Integral) and not isinstance(x, bool) for x in edge):
+                raise ValueError(f"graph.edges[{i}]: UAV indices must be integers, got {edge!r}")
             m, p = (int(x) for x in edge)
             if not (0 <= m < n and 0 <= p < n):
                 raise ValueError(f"graph.edges[{i}]: UAV index out of range 0..{n - 1}")

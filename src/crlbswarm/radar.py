@@ -84,6 +84,10 @@ def dbm_to_watts(value_dbm: float | np.ndarray) -> float | np.ndarray:
 
 
 def _field_value(value: object, name: str) -> float | np.ndarray:
+    if isinstance(value, str | bytes | bool | np.bool_) or (
+        isinstance(value, np.ndarray) and value.dtype.kind not in "iuf"
+    ):
+        raise ValueError(f"radar.{name}: expected a number or an array of numbers, got {value!r}")
     arr = _v.positive(value, f"radar.{name}")
     if arr.ndim == 0:
         return float(arr)
@@ -214,25 +218,22 @@ class Radar:
         Radar
             The same link in linear SI units.
         """
-        for name, value in (
-            ("tx_power_dbm", tx_power_dbm),
-            ("noise_power_dbm", noise_power_dbm),
-            ("processing_gain_db", processing_gain_db),
-            ("tx_gain_dbi", tx_gain_dbi),
-            ("rx_gain_dbi", rx_gain_dbi),
-            ("rcs_dbsm", rcs_dbsm),
+        linear = {}
+        for name, value, field_name, convert in (
+            ("tx_power_dbm", tx_power_dbm, "tx_power", dbm_to_watts),
+            ("noise_power_dbm", noise_power_dbm, "noise_power", dbm_to_watts),
+            ("processing_gain_db", processing_gain_db, "processing_gain", db_to_linear),
+            ("tx_gain_dbi", tx_gain_dbi, "tx_gain", db_to_linear),
+            ("rx_gain_dbi", rx_gain_dbi, "rx_gain", db_to_linear),
+            ("rcs_dbsm", rcs_dbsm, "rcs", db_to_linear),
         ):
             _v.finite(value, f"radar.{name}")
-        return cls(
-            tx_power=dbm_to_watts(tx_power_dbm),
-            noise_power=dbm_to_watts(noise_power_dbm),
-            processing_gain=db_to_linear(processing_gain_db),
-            tx_gain=db_to_linear(tx_gain_dbi),
-            rx_gain=db_to_linear(rx_gain_dbi),
-            rcs=db_to_linear(rcs_dbsm),
-            carrier_frequency=carrier_frequency,
-            kappa=kappa,
-        )
+            with np.errstate(over="ignore", under="ignore"):
+                lin = convert(value)
+            if not np.all(np.isfinite(lin) & (lin > 0)):
+                raise ValueError(f"radar.{name}: {value!r} is out of range in linear units")
+            linear[field_name] = lin
+        return cls(**linear, carrier_frequency=carrier_frequency, kappa=kappa)
 
     def replace(self, **changes: Any) -> Radar:
         """Return a copy with some fields changed (validated like the constructor)."""
