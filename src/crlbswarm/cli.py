@@ -442,7 +442,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``crlbswarm`` console script; returns the exit status."""
+    """Entry point of the ``crlbswarm`` console script.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` if omitted.
+
+    Returns
+    -------
+    int
+        Exit status: 0 on success, 2 for an error the user can fix (printed as one line).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

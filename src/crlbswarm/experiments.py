@@ -75,7 +75,14 @@ class AltitudeSweep:
     parameters: dict[str, float]
 
     def columns(self) -> dict[str, np.ndarray]:
-        """Flat CSV columns: altitude, bound, then ``crlb_<name>`` and ``sem_<name>``."""
+        """Flat CSV columns: altitude, bound, then ``crlb_<name>`` and ``sem_<name>``.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K,)
+            ``altitude_m``, ``bound_m2``, ``crlb_<formation>_m2`` for every formation, and
+            ``sem_<formation>_m2`` for the random ones.
+        """
         cols = {"altitude_m": self.altitude, "bound_m2": self.bound}
         for name, values in self.crlb.items():
             cols[f"crlb_{name}_m2"] = values
@@ -104,7 +111,13 @@ class ElevationCurve:
     radius: np.ndarray
 
     def columns(self) -> dict[str, np.ndarray]:
-        """Flat columns for a CSV file (elevation in degrees, as at every edge)."""
+        """Flat columns for a CSV file (elevation in degrees, as at every edge).
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K,)
+            ``altitude_m``, ``elevation_deg``, ``radius_m``.
+        """
         return {
             "altitude_m": self.altitude,
             "elevation_deg": np.degrees(self.elevation),

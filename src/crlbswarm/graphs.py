@@ -101,7 +101,13 @@ class Adjacency:
         return np.stack([rows[keep], self.indices[keep]], axis=-1)
 
     def laplacian(self) -> sp.csr_array:
-        """Graph Laplacian :math:`L = D - A` as a sparse array, shape (M, M)."""
+        """Graph Laplacian :math:`L = D - A`.
+
+        Returns
+        -------
+        scipy.sparse.csr_array, shape (M, M)
+            The Laplacian, sparse.
+        """
         n = self.n_nodes
         adj = sp.csr_array(
             (np.ones(self.indices.shape[0]), self.indices, self.indptr), shape=(n, n)

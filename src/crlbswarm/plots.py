@@ -8,6 +8,8 @@ they work on a machine without a display. Only the CLI saves files.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -133,9 +135,7 @@ def plot_optimal_elevation(curve: ElevationCurve, ax: Axes | None = None) -> Fig
 
 
 def _check_run(result: MissionResult, run: int) -> int:
-    if not 0 <= run < result.n_runs:
-        raise ValueError(f"run: must lie in 0..{result.n_runs - 1}, got {run}")
-    return run
+    return result._run_index(run)
 
 
 def passage_interval(result: MissionResult, run: int = 0) -> tuple[float, float] | None:
@@ -289,7 +289,9 @@ def plot_mission_trajectories(
     return fig
 
 
-def plot_mission_timeseries(result: MissionResult, run: int = 0) -> Figure:
+def plot_mission_timeseries(
+    result: MissionResult, run: int = 0, axes: Sequence[Axes] | None = None
+) -> Figure:
     """Fig. 4: CRLB and control cost against time, with the bound and the passage shaded.
 
     A third panel shows the scaling factor eta and the smallest obstacle clearance.
@@ -300,15 +302,22 @@ def plot_mission_timeseries(result: MissionResult, run: int = 0) -> Figure:
         Simulation result.
     run : int, default 0
         Index of the run in the batch.
+    axes : sequence of three matplotlib.axes.Axes, optional
+        Axes for the CRLB, cost and eta panels; a new figure is made if omitted.
 
     Returns
     -------
     matplotlib.figure.Figure
-        A figure with three panels sharing the time axis.
+        The figure holding the three panels.
     """
     b = _check_run(result, run)
-    fig = Figure(figsize=(6.4, 7.0), layout="constrained")
-    ax_crlb, ax_cost, ax_eta = fig.subplots(3, 1, sharex=True, height_ratios=(3, 3, 2))
+    if axes is None:
+        fig = Figure(figsize=(6.4, 7.0), layout="constrained")
+        axes = fig.subplots(3, 1, sharex=True, height_ratios=(3, 3, 2))
+    if len(axes) != 3:
+        raise ValueError(f"axes: expected three axes, got {len(axes)}")
+    ax_crlb, ax_cost, ax_eta = axes
+    fig = ax_crlb.figure
     t = result.time
     ax_crlb.plot(t, result.crlb[b], color="C0", label="CRLB at the UAV positions")
     ax_crlb.axhline(

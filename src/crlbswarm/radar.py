@@ -236,7 +236,18 @@ class Radar:
         return cls(**linear, carrier_frequency=carrier_frequency, kappa=kappa)
 
     def replace(self, **changes: Any) -> Radar:
-        """Return a copy with some fields changed (validated like the constructor)."""
+        """Return a copy with some fields changed (validated like the constructor).
+
+        Parameters
+        ----------
+        **changes
+            New values of fields, by name.
+
+        Returns
+        -------
+        Radar
+            The modified copy.
+        """
         return dataclasses.replace(self, **changes)
 
     # -- derived quantities -----------------------------------------------------------
@@ -297,7 +308,13 @@ class Radar:
         return d**4 / a
 
     def to_dict(self) -> dict[str, float | list[float]]:
-        """The fields as plain Python numbers (lists for per-UAV fields), for JSON or TOML."""
+        """The fields as plain Python numbers (lists for per-UAV fields), for JSON or TOML.
+
+        Returns
+        -------
+        dict of str to float or list of float
+            Field name to value, linear SI units.
+        """
         out: dict[str, float | list[float]] = {}
         for name in _FIELDS:
             value = getattr(self, name)

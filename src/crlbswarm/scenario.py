@@ -144,7 +144,13 @@ class RadarConfig(_Model):
     kappa: PositiveFloat = Field(1.0, description="range-estimation constant")
 
     def to_radar(self) -> Radar:
-        """The :class:`crlbswarm.Radar` with these parameters."""
+        """The :class:`crlbswarm.Radar` with these parameters.
+
+        Returns
+        -------
+        Radar
+            The radar, linear SI units.
+        """
         return Radar(**self.model_dump())
 
 

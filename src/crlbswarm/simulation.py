@@ -507,7 +507,7 @@ def simulate(
             raise SimulationDivergedError(
                 f"run {b} (seed {seed_arr[b]}) diverged at step {status[b]} "
                 f"(t = {status[b] * sc.time.step:g} s): NaN or positions beyond "
-                f"{DIVERGENCE_LIMIT:g} m; check the gains of the scenario"
+                f"{DIVERGENCE_LIMIT:g} m; check the gains and the disturbance of the scenario"
             )
         crlb_arr[lo:hi] = crlb(pos, target, sc.altitude, radar)
         centroid[lo:hi] = pos.mean(axis=-2)
