@@ -11,21 +11,11 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import time
 
 import numpy as np
 
 import crlbswarm as cs
-
-
-def best_of(fn, repeat: int) -> float:
-    fn()  # warm-up: page faults, caches
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+from timing import best_of
 
 
 def plain_loop_crlb(q: np.ndarray, s: np.ndarray, h: float, a: float) -> np.ndarray:
