@@ -30,6 +30,8 @@ MODULES = [
     "crlbswarm.control",
     "crlbswarm.scenario",
     "crlbswarm.simulation",
+    "crlbswarm.estimation",
+    "crlbswarm.montecarlo",
 ]
 
 

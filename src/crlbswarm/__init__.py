@@ -25,6 +25,13 @@ from .design import (
     optimal_formation,
     optimal_radius,
 )
+from .estimation import (
+    TargetEstimate,
+    estimate_target,
+    linearised_estimate,
+    measure_ranges,
+    negative_log_likelihood,
+)
 from .experiments import (
     FORMATION_LABELS,
     AltitudeSweep,
@@ -56,6 +63,12 @@ from .graphs import (
     consensus_step_limit,
     formation_step_limit,
 )
+from .montecarlo import (
+    EstimatorSweep,
+    MonteCarloResult,
+    estimator_vs_altitude,
+    monte_carlo_mse,
+)
 from .radar import SPEED_OF_LIGHT, Radar, db_to_linear, dbm_to_watts
 from .scenario import BUILTIN_SCENARIOS, Scenario, ScenarioError, load_scenario
 from .simulation import MissionResult, SimulationDivergedError, simulate, start_positions
@@ -70,12 +83,15 @@ __all__ = [
     "Adjacency",
     "AltitudeSweep",
     "ElevationCurve",
+    "EstimatorSweep",
     "MissionResult",
+    "MonteCarloResult",
     "Obstacles",
     "Radar",
     "Scenario",
     "ScenarioError",
     "SimulationDivergedError",
+    "TargetEstimate",
     "arc_formation",
     "azimuth_angles",
     "communication_graph",
@@ -92,6 +108,8 @@ __all__ = [
     "e_optimality",
     "e_optimality_from_fim",
     "elevation_angles",
+    "estimate_target",
+    "estimator_vs_altitude",
     "eta_target",
     "eta_update",
     "fisher_information",
@@ -102,7 +120,11 @@ __all__ = [
     "information_weight",
     "leader_guidance",
     "line_formation",
+    "linearised_estimate",
     "load_scenario",
+    "measure_ranges",
+    "monte_carlo_mse",
+    "negative_log_likelihood",
     "obstacle_clearance",
     "optimal_elevation",
     "optimal_elevation_curve",

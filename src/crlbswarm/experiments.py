@@ -125,6 +125,48 @@ class ElevationCurve:
         }
 
 
+def _formations_over_altitude(
+    altitudes: object,
+    n_uavs: int,
+    radar: Radar,
+    fixed_radius: float,
+    arc_span: float,
+    disc_factor: float,
+    n_random: int,
+    seed: int,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Validated altitudes (a copy) and F* and every benchmark over them, target at 0.
+
+    Shapes: (K, M, 2) for the deterministic formations, (K, n_random, M, 2) for
+    ``random_disc`` (the same unit-disc draws scaled at every altitude).
+    """
+    h = _v.positive(altitudes, "altitudes")
+    if h.ndim != 1:
+        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
+    if radar.per_uav:
+        raise ValueError("radar: the altitude sweeps need scalar radar fields")
+    if _v.scalar(disc_factor, "disc_factor") <= 0:
+        raise ValueError(f"disc_factor: must be > 0, got {disc_factor!r}")
+    if _v.scalar(fixed_radius, "fixed_radius") <= 0:
+        raise ValueError(f"fixed_radius: must be > 0, got {fixed_radius!r}")
+    span = _v.scalar(arc_span, "arc_span")
+    if not 0.0 < span <= np.pi:
+        raise ValueError(f"arc_span: must lie in (0, pi], got {arc_span!r}")
+    _v.count(n_random, "n_random", 1)
+    _v.count(seed, "seed", 0)
+    h = h.copy()  # results must not share memory with the caller's array
+    origin = np.zeros(2)
+    r_star = optimal_radius(h, radar)
+    rng = np.random.default_rng(seed)
+    return h, {
+        "optimal": optimal_formation(n_uavs, origin, h, radar),
+        "fixed_polygon": fixed_radius_polygon(n_uavs, np.zeros((h.size, 2)), fixed_radius),
+        "arc": arc_formation(n_uavs, origin, r_star, span=arc_span),
+        "line": line_formation(n_uavs, origin, r_star, 2.0 * r_star),
+        "random_disc": random_disc_formations(n_uavs, origin, disc_factor * r_star, n_random, rng),
+    }
+
+
 def crlb_vs_altitude(
     altitudes: object = DEFAULT_ALTITUDES,
     n_uavs: int = 6,
@@ -169,34 +211,13 @@ def crlb_vs_altitude(
     AltitudeSweep
         The data of Fig. 2.
     """
-    h = _v.positive(altitudes, "altitudes")
-    if h.ndim != 1:
-        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
-    if radar.per_uav:
-        raise ValueError("radar: crlb_vs_altitude needs scalar radar fields")
-    if _v.scalar(disc_factor, "disc_factor") <= 0:
-        raise ValueError(f"disc_factor: must be > 0, got {disc_factor!r}")
-    if _v.scalar(fixed_radius, "fixed_radius") <= 0:
-        raise ValueError(f"fixed_radius: must be > 0, got {fixed_radius!r}")
-    span = _v.scalar(arc_span, "arc_span")
-    if not 0.0 < span <= np.pi:
-        raise ValueError(f"arc_span: must lie in (0, pi], got {arc_span!r}")
-    _v.count(n_random, "n_random", 1)
-    _v.count(seed, "seed", 0)
-    h = h.copy()  # the result must not share memory with the caller's array
+    h, formations = _formations_over_altitude(
+        altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, n_random, seed
+    )
     origin = np.zeros(2)
-    r_star = optimal_radius(h, radar)
-    formations = {
-        "optimal": optimal_formation(n_uavs, origin, h, radar),
-        "fixed_polygon": fixed_radius_polygon(n_uavs, np.zeros((h.size, 2)), fixed_radius),
-        "arc": arc_formation(n_uavs, origin, r_star, span=arc_span),
-        "line": line_formation(n_uavs, origin, r_star, 2.0 * r_star),
-    }
+    draws = formations.pop("random_disc")
     values = {name: crlb(f, origin, h, radar) for name, f in formations.items()}
     sem = {name: np.zeros_like(v) for name, v in values.items()}
-
-    rng = np.random.default_rng(seed)
-    draws = random_disc_formations(n_uavs, origin, disc_factor * r_star, n_random, rng)
     random_crlb = crlb(draws, origin, h[:, None], radar)
     values["random_disc"] = random_crlb.mean(axis=-1)
     sem["random_disc"] = (

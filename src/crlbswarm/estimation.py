@@ -1,0 +1,394 @@
+r"""Estimating the target from the ranges: measurements, a closed-form initialiser and the MLE.
+
+The paper stops at the CRLB and assumes "a prior coarse estimate" of the target. This module
+(not in the paper) draws range measurements from the model of Sec. II and estimates the
+target position by maximum likelihood, so that the bound can be checked against an
+estimator that reaches it.
+
+Model (eq. (2) with the variance of Sec. II): :math:`\hat d_m = d_m(\mathbf s) + z_m`,
+:math:`z_m \sim \mathcal N(0, \sigma_m^2)`, :math:`\sigma_m^2 = d_m^4 / A_m`, independent over
+UAVs. The negative log-likelihood, up to a constant, is
+
+.. math::
+
+    \ell(\mathbf s) = \sum_m \Bigl[2\ln d_m(\mathbf s)
+        + \frac{A_m\,(\hat d_m - d_m(\mathbf s))^2}{2\,d_m(\mathbf s)^4}\Bigr].
+
+Both the mean and the variance depend on :math:`\mathbf s`, which is why the FIM of eq. (6)
+has the extra term :math:`8/d_m^2`.
+
+:func:`estimate_target` first runs a weighted least-squares fit of the ranges with frozen
+weights (which cannot drift away: see its docstring), then minimises :math:`\ell` by a
+Levenberg-Marquardt-damped Newton method: the step solves
+:math:`(\nabla^2\ell + \mu\,\tfrac12\operatorname{tr}(\mathbf J_s)\,\mathbf I)\Delta =
+-\nabla\ell` with the exact Hessian, and is accepted only if it
+lowers :math:`\ell` (otherwise :math:`\mu` grows tenfold, which turns the step into a short
+gradient step; an accepted step divides :math:`\mu` by ten). The damping is scaled by the
+FIM of eq. (8) so that it is dimensionally right at every altitude. Near the optimum the
+steps are Newton steps, so convergence is quadratic; the converged point is a stationary
+point of the exact likelihood, the MLE.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _validation as _v
+from .fisher import _check_radar
+from .geometry import check_scene, target_offsets
+from .radar import Radar
+
+__all__ = [
+    "TargetEstimate",
+    "estimate_target",
+    "linearised_estimate",
+    "measure_ranges",
+    "negative_log_likelihood",
+]
+
+_DEFAULT_RADAR = Radar()
+
+
+def _ranges_array(measured_ranges: object, n_uavs: int) -> np.ndarray:
+    d = _v.as_float_array(measured_ranges, "measured_ranges")
+    if d.ndim < 1 or d.shape[-1] != n_uavs:
+        raise ValueError(
+            f"measured_ranges: expected shape (..., {n_uavs}) to match uav_xy, got {d.shape}"
+        )
+    return _v.check_finite(d, "measured_ranges")
+
+
+def measure_ranges(
+    uav_xy: object,
+    target_xy: object,
+    altitude: object,
+    radar: Radar = _DEFAULT_RADAR,
+    rng: np.random.Generator | None = None,
+) -> np.ndarray:
+    r"""Noisy range measurements :math:`\hat d_m = d_m + z_m`, eq. (2).
+
+    :math:`z_m \sim \mathcal N(0, d_m^4/A_m)` independently for every UAV and every batch
+    element.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    target_xy : array_like, shape (..., 2)
+        True target position, m.
+    altitude : float or array_like, shape (...)
+        Flight altitude :math:`H > 0`, m.
+    radar : Radar, optional
+        Link parameters (paper profile by default).
+    rng : numpy.random.Generator
+        Source of the noise (required: every random draw is seeded by the caller).
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        Measured ranges, m (may be negative with vanishing probability at very low SNR).
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    q, s, h = check_scene(uav_xy, target_xy, altitude)
+    a = _check_radar(radar, q.shape[-2])
+    diff = target_offsets(q, s)
+    d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
+    d = np.sqrt(d2)
+    sigma = d2 / np.sqrt(a)  # sqrt(d^4 / A)
+    return d + sigma * rng.standard_normal(d.shape)
+
+
+def negative_log_likelihood(
+    target_xy: object,
+    uav_xy: object,
+    measured_ranges: object,
+    altitude: object,
+    radar: Radar = _DEFAULT_RADAR,
+) -> np.ndarray:
+    r"""Negative log-likelihood :math:`\ell(\mathbf s)` of the ranges, up to a constant.
+
+    .. math:: \ell(\mathbf s) = \sum_m \Bigl[2\ln d_m + \frac{A_m(\hat d_m - d_m)^2}
+              {2 d_m^4}\Bigr]
+
+    Parameters
+    ----------
+    target_xy : array_like, shape (..., 2)
+        Candidate target position :math:`\mathbf s`, m.
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m.
+    measured_ranges : array_like, shape (..., M)
+        Measured ranges :math:`\hat d_m`, m.
+    altitude : float or array_like, shape (...)
+        Flight altitude, m.
+    radar : Radar, optional
+        Link parameters.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        :math:`\ell(\mathbf s)` (dimensionless up to the dropped constant).
+    """
+    q, s, h = check_scene(uav_xy, target_xy, altitude)
+    a = _check_radar(radar, q.shape[-2])
+    d_hat = _ranges_array(measured_ranges, q.shape[-2])
+    diff = target_offsets(q, s)
+    d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
+    r = d_hat - np.sqrt(d2)
+    return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
+
+
+def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: object) -> np.ndarray:
+    r"""Closed-form linear least-squares estimate: an initialiser that needs no prior.
+
+    Squaring the ranges, :math:`\hat d_m^2 - \lVert\mathbf q_m\rVert^2 - H^2 \approx
+    -2\mathbf q_m^\top \mathbf s + R` with :math:`R = \lVert\mathbf s\rVert^2` treated as a
+    third unknown: a linear system in :math:`(s_x, s_y, R)` solved by least squares for every
+    batch element (positions are first centred on the UAVs' mean for conditioning).
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m (M >= 3, not all collinear).
+    measured_ranges : array_like, shape (..., M)
+        Measured ranges, m.
+    altitude : float or array_like, shape (...)
+        Flight altitude, m.
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+        Estimate, m. Where the system is singular (collinear UAVs) the UAVs' centroid is
+        returned; the result is never NaN.
+    """
+    q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
+    if q.shape[-2] < 3:
+        raise ValueError(
+            f"uav_xy: the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
+        )
+    d_hat = _ranges_array(measured_ranges, q.shape[-2])
+    center = q.mean(axis=-2)
+    qc = q - center[..., None, :]
+    rows = np.concatenate([-2.0 * qc, np.ones((*qc.shape[:-1], 1))], axis=-1)  # (..., M, 3)
+    rhs = d_hat * d_hat - np.sum(qc * qc, axis=-1) - (h * h)[..., None]
+    shape = np.broadcast_shapes(rows.shape[:-2], rhs.shape[:-1])
+    rows = np.broadcast_to(rows, (*shape, *rows.shape[-2:]))
+    rhs = np.broadcast_to(rhs, (*shape, rhs.shape[-1]))
+    normal = np.einsum("...mi,...mj->...ij", rows, rows)
+    moment = np.einsum("...mi,...m->...i", rows, rhs)
+    det = np.linalg.det(normal)
+    scale = np.einsum("...ii->...", normal) ** 3
+    ok = np.abs(det) > 1e-12 * scale
+    safe = np.where(ok[..., None, None], normal, np.eye(3))
+    sol = np.linalg.solve(safe, moment[..., None])[..., 0]
+    est = np.where(ok[..., None], sol[..., :2], 0.0)
+    return np.broadcast_to(center, est.shape) + est
+
+
+@dataclass(frozen=True, eq=False)
+class TargetEstimate:
+    """Result of :func:`estimate_target` for a batch of trials.
+
+    Attributes
+    ----------
+    position : ndarray, shape (..., 2)
+        Estimated target position, m. Never NaN: a failed trial keeps its last iterate.
+    converged : ndarray of bool, shape (...)
+        Whether the trial met the tolerance within ``max_iter`` iterations.
+    iterations : ndarray of int, shape (...)
+        Iterations used.
+    nll : ndarray, shape (...)
+        Negative log-likelihood at ``position``.
+    """
+
+    position: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    nll: np.ndarray
+
+    @property
+    def failed(self) -> np.ndarray:
+        """Trials that did not converge (report them; their position is not the MLE)."""
+        return ~self.converged
+
+
+def _wls_terms(s, q, d_hat, h2, a, w):
+    """Stage 1: weighted least squares with frozen weights ``w`` = A / d_hat^4.
+
+    Returns ``(cost, gradient, Gauss-Newton Hessian entries, Hessian trace)``.
+    """
+    diff = s[..., None, :] - q
+    d = np.sqrt(np.sum(diff * diff, axis=-1) + h2)
+    r = d_hat - d
+    u = diff / d[..., None]
+    cost = 0.5 * np.sum(w * r * r, axis=-1)
+    grad = -np.sum((w * r)[..., None] * u, axis=-2)
+    ux, uy = u[..., 0], u[..., 1]
+    hxx = np.sum(w * ux * ux, axis=-1)
+    hyy = np.sum(w * uy * uy, axis=-1)
+    hxy = np.sum(w * ux * uy, axis=-1)
+    return cost, grad, hxx, hyy, hxy, hxx + hyy
+
+
+def _nll_terms(s, q, d_hat, h2, a, w):
+    """Stage 2: the exact negative log-likelihood, its gradient and exact Hessian, and
+    tr J_s for scaling the damping (``w`` unused)."""
+    diff = s[..., None, :] - q  # s - q_m, so that d d_m / d s = diff / d_m
+    d2 = np.sum(diff * diff, axis=-1) + h2
+    d = np.sqrt(d2)
+    r = d_hat - d
+    inv_d4 = 1.0 / (d2 * d2)
+    nll = np.sum(np.log(d2) + 0.5 * a * r * r * inv_d4, axis=-1)
+    # d nll / d d_m = 2/d - A r / d^4 - 2 A r^2 / d^5
+    dl_dd = 2.0 / d - a * r * inv_d4 - 2.0 * a * r * r * inv_d4 / d
+    # d^2 nll / d d_m^2 = -2/d^2 + A/d^4 + 8 A r/d^5 + 10 A r^2/d^6
+    d2l_dd2 = -2.0 / d2 + a * inv_d4 * (1.0 + 8.0 * r / d + 10.0 * r * r / d2)
+    u = diff / d[..., None]
+    grad = np.sum(dl_dd[..., None] * u, axis=-2)
+    # Hessian: sum_m l''_m u u^T + l'_m (I - u u^T) / d_m   (d^2 d_m / d s^2 = (I - u u^T)/d)
+    c = dl_dd / d
+    ux, uy = u[..., 0], u[..., 1]
+    hxx = np.sum(d2l_dd2 * ux * ux + c * (1.0 - ux * ux), axis=-1)
+    hyy = np.sum(d2l_dd2 * uy * uy + c * (1.0 - uy * uy), axis=-1)
+    hxy = np.sum((d2l_dd2 - c) * ux * uy, axis=-1)
+    fim_trace = np.sum((a * inv_d4 + 8.0 / d2) * (ux * ux + uy * uy), axis=-1)  # tr J_s
+    return nll, grad, hxx, hyy, hxy, fim_trace
+
+
+def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
+    """Levenberg-Marquardt-damped Newton minimisation of ``terms`` for every row of ``s``.
+
+    Returns ``(s, cost, converged, iterations)``; ``s`` is updated only by steps that lower
+    the cost, so it stays finite.
+    """
+    n = s.shape[0]
+    per = np.ndim(a) > 0
+
+    def at(x, idx):
+        return terms(x, q[idx], d_hat[idx], h2[idx], a[idx] if per else a, w[idx])
+
+    every = np.arange(n)
+    cost, grad, hxx, hyy, hxy, htr = at(s, every)
+    mu = np.full(n, 1e-3)
+    active = np.ones(n, dtype=bool)
+    converged = np.zeros(n, dtype=bool)
+    iterations = np.zeros(n, dtype=np.int64)
+    for _ in range(n_iter):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        iterations[idx] += 1
+        # Damped Newton step: (Hess + mu tr/2 I) delta = -grad, in closed form (2x2).
+        damp = mu[idx] * 0.5 * htr[idx]
+        axx = hxx[idx] + damp
+        ayy = hyy[idx] + damp
+        axy = hxy[idx]
+        det = axx * ayy - axy * axy
+        gx, gy = grad[idx, 0], grad[idx, 1]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            step = -np.stack([(ayy * gx - axy * gy) / det, (axx * gy - axy * gx) / det], axis=-1)
+        step = np.where(np.isfinite(step), step, 0.0)
+        trial = s[idx] + step
+        t_cost, t_grad, t_xx, t_yy, t_xy, t_tr = at(trial, idx)
+        # Accept a step that lowers the cost; a positive definite damped matrix (det > 0,
+        # diagonal > 0) makes the step a descent direction.
+        descent = (det > 0) & (axx > 0)
+        better = descent & np.isfinite(t_cost) & (t_cost <= cost[idx])
+        near_newton = mu[idx] <= 1e-2
+        acc = idx[better]
+        s[acc] = trial[better]
+        cost[acc], grad[acc], htr[acc] = t_cost[better], t_grad[better], t_tr[better]
+        hxx[acc], hyy[acc], hxy[acc] = t_xx[better], t_yy[better], t_xy[better]
+        mu[acc] = np.maximum(mu[acc] / 10.0, 1e-12)
+        rej = idx[~better]
+        mu[rej] = mu[rej] * 10.0
+        step_len = np.hypot(step[:, 0], step[:, 1])
+        scale = 1.0 + np.hypot(*(s[idx] - q[idx].mean(axis=1)).T)
+        # Converged when the (nearly undamped) Newton step is negligible, accepted or not: at
+        # that size the change of the cost is below its rounding error.
+        done = (step_len <= tolerance * scale) & (better | near_newton)
+        converged[idx[done]] = True
+        active[idx[done]] = False
+        active[idx[mu[idx] > 1e12]] = False  # hopeless damping: give up, report failed
+    return s, cost, converged, iterations
+
+
+def estimate_target(
+    uav_xy: object,
+    measured_ranges: object,
+    altitude: object,
+    radar: Radar = _DEFAULT_RADAR,
+    init: object = None,
+    *,
+    max_iter: int = 100,
+    tol: float = 1e-10,
+) -> TargetEstimate:
+    r"""Maximum-likelihood estimate of the target from the ranges, for a batch of trials.
+
+    Two stages, each a Levenberg-Marquardt-damped Newton iteration with its own damping per
+    trial, all trials advanced together with NumPy:
+
+    1. weighted least squares on the range residuals with the weights frozen at
+       :math:`A_m/\hat d_m^4` (Gauss-Newton curvature), from ``init``. Its cost grows with
+       distance, so it cannot slide into the spurious far-away basin of the exact
+       likelihood (far from the UAVs the modelled variance :math:`d^4/A` is so large that it
+       "explains" any range);
+    2. the exact likelihood (module docstring) with its exact Hessian, from stage 1. Its
+       result is the MLE; ``nll`` and ``converged`` refer to this stage.
+
+    Parameters
+    ----------
+    uav_xy : array_like, shape (..., M, 2)
+        Horizontal UAV positions, m (M >= 3 unless ``init`` is given).
+    measured_ranges : array_like, shape (..., M)
+        Measured ranges :math:`\hat d_m`, m (for example from :func:`measure_ranges`).
+    altitude : float or array_like, shape (...)
+        Flight altitude :math:`H > 0`, m.
+    radar : Radar, optional
+        Link parameters of the likelihood (paper profile by default).
+    init : array_like, shape (..., 2), optional
+        Starting point; by default :func:`linearised_estimate` (no prior needed). Give a
+        coarse prior when the geometry is ambiguous (UAVs on a line cannot tell the target
+        from its mirror image).
+    max_iter : int, default 100
+        Largest number of iterations of each stage.
+    tol : float, default 1e-10
+        Convergence when the step is below ``tol`` times (1 m + the distance of the
+        estimate from the UAVs' centroid).
+
+    Returns
+    -------
+    TargetEstimate
+        Estimates, convergence flags, iterations (both stages) and the final negative
+        log-likelihood.
+    """
+    q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
+    a = _check_radar(radar, q.shape[-2])
+    d_hat = _ranges_array(measured_ranges, q.shape[-2])
+    n_iter = _v.count(max_iter, "max_iter", 1)
+    tolerance = _v.scalar(tol, "tol")
+    if not tolerance > 0:
+        raise ValueError(f"tol: must be > 0, got {tol!r}")
+    s0 = linearised_estimate(q, d_hat, h) if init is None else _v.point(init, "init")
+    batch = np.broadcast_shapes(q.shape[:-2], d_hat.shape[:-1], h.shape, s0.shape[:-1])
+    m_uavs = q.shape[-2]
+    q = np.broadcast_to(q, (*batch, m_uavs, 2)).reshape(-1, m_uavs, 2)
+    d_hat = np.broadcast_to(d_hat, (*batch, m_uavs)).reshape(-1, m_uavs)
+    h2 = np.broadcast_to(h * h, batch).reshape(-1, 1)
+    s = np.broadcast_to(s0, (*batch, 2)).reshape(-1, 2).copy()
+    a_b = a if np.ndim(a) == 0 else np.broadcast_to(a, d_hat.shape)
+    # Frozen weights of stage 1; a range measured near zero (absurd SNR) gets a finite weight.
+    d_floor = np.maximum(np.abs(d_hat), np.sqrt(h2))
+    w = a_b / d_floor**4
+    # Stage 1 only has to land in the basin of the MLE: a loose tolerance saves iterations.
+    loose = max(tolerance, 1e-6)
+    s, _, _, it1 = _damped_newton(_wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
+    s, nll, converged, it2 = _damped_newton(_nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance)
+    return TargetEstimate(
+        position=s.reshape(*batch, 2),
+        converged=converged.reshape(batch),
+        iterations=(it1 + it2).reshape(batch),
+        nll=nll.reshape(batch),
+    )
