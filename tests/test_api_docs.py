@@ -32,6 +32,7 @@ MODULES = [
     "crlbswarm.simulation",
     "crlbswarm.estimation",
     "crlbswarm.montecarlo",
+    "crlbswarm.tracking",
 ]
 
 

@@ -209,7 +209,8 @@ def test_scenario_show_round_trips(tmp_path, capsys):
 def test_scenario_list(capsys):
     status, out, _ = run(capsys, "scenario", "list")
     assert status == 0
-    assert out.startswith("paper")
+    names = [line.split()[0] for line in out.splitlines()]
+    assert names == sorted(["paper", "sensing", "moving_target"])
 
 
 def test_simulate_writes_outputs(tmp_path, capsys):

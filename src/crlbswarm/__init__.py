@@ -72,6 +72,7 @@ from .montecarlo import (
 from .radar import SPEED_OF_LIGHT, Radar, db_to_linear, dbm_to_watts
 from .scenario import BUILTIN_SCENARIOS, Scenario, ScenarioError, load_scenario
 from .simulation import MissionResult, SimulationDivergedError, simulate, start_positions
+from .tracking import mean_range_information, motion_matrices, posterior_crlb, target_trajectories
 
 __version__ = "0.1.0"
 
@@ -122,14 +123,17 @@ __all__ = [
     "line_formation",
     "linearised_estimate",
     "load_scenario",
+    "mean_range_information",
     "measure_ranges",
     "monte_carlo_mse",
+    "motion_matrices",
     "negative_log_likelihood",
     "obstacle_clearance",
     "optimal_elevation",
     "optimal_elevation_curve",
     "optimal_formation",
     "optimal_radius",
+    "posterior_crlb",
     "random_disc_formations",
     "range_information",
     "regular_polygon",
@@ -137,4 +141,5 @@ __all__ = [
     "simulate",
     "slant_ranges",
     "start_positions",
+    "target_trajectories",
 ]

@@ -233,11 +233,14 @@ def _formation(q, delta, eta, eps, indptr, indices, out):
 
 
 @njit(cache=True)
-def _reference(qx, qy, gx, gy, cx, cy, gain, cruise, rects, circles, e_r, l_safe, footprint, dt):
-    """Leader reference velocity (not in the paper): proportional guidance to the goal plus,
-    if ``footprint > 0``, the repulsion felt by the formation's disc, saturated at cruise."""
-    wx = gain * (gx - qx)
-    wy = gain * (gy - qy)
+def _reference(
+    qx, qy, gx, gy, cx, cy, gain, cruise, tvx, tvy, rects, circles, e_r, l_safe, footprint, dt
+):
+    """Leader reference velocity (not in the paper): the goal's velocity plus proportional
+    guidance to the goal plus, if ``footprint > 0``, the repulsion felt by the formation's
+    disc, saturated at cruise."""
+    wx = tvx + gain * (gx - qx)
+    wy = tvy + gain * (gy - qy)
     if footprint > 0.0:
         rx, ry = _repulsion_point(cx, cy, rects, circles, e_r, l_safe, math.inf, footprint)
         wx += rx / dt
@@ -329,11 +332,13 @@ def _clearance_batch(q, rects, circles, out):
 
 
 @njit(cache=True)
-def _reference_batch(q, goal, c, gain, cruise, rects, circles, e_r, l_safe, footprint, dt, out):
+def _reference_batch(
+    q, goal, c, tv, gain, cruise, rects, circles, e_r, l_safe, footprint, dt, out
+):
     for b in range(q.shape[0]):
         vx, vy = _reference(
             q[b, 0], q[b, 1], goal[b, 0], goal[b, 1], c[b, 0], c[b, 1], gain, cruise,
-            rects, circles, e_r, l_safe, footprint, dt,
+            tv[b, 0], tv[b, 1], rects, circles, e_r, l_safe, footprint, dt,
         )  # fmt: skip
         out[b, 0] = vx
         out[b, 1] = vy
@@ -449,6 +454,7 @@ def leader_guidance(
     cruise_speed: float,
     *,
     center_xy: object = None,
+    goal_velocity: object = (0.0, 0.0),
     footprint: float = 0.0,
     obstacles: Obstacles | None = None,
     repulsion_gain: float = 2.0,
@@ -458,18 +464,20 @@ def leader_guidance(
     r"""Leader's reference velocity :math:`\mathbf v^*_k` (not in the paper).
 
     .. math::
-        \mathbf v^* = \operatorname{sat}_{v_c}\bigl(k_g(\mathbf g - \mathbf q_1)
-        + \mathbf u^r(\mathbf c;\, \rho)/\Delta T\bigr),
+        \mathbf v^* = \operatorname{sat}_{v_c}\bigl(\dot{\mathbf g} + k_g(\mathbf g -
+        \mathbf q_1) + \mathbf u^r(\mathbf c;\, \rho)/\Delta T\bigr),
         \qquad \operatorname{sat}_{v_c}(\mathbf w) = \mathbf w\,\min(1, v_c/\lVert\mathbf w
         \rVert)
 
     Proportional guidance toward the goal :math:`\mathbf g` (the leader's slot over the
-    target), saturated at the cruise speed, so that it decays to zero as the formation
-    settles. With ``footprint`` :math:`\rho > 0` the leader also steers the whole formation:
-    :math:`\mathbf u^r(\mathbf c; \rho)` is the repulsion of eq. (18) felt by a disc of
-    radius :math:`\rho` (the formation, :math:`\eta_k r^*`) centred at the formation centre
-    :math:`\mathbf c`, i.e. eq. (18) with every distance reduced by :math:`\rho`. This keeps
-    the formation centred in a passage instead of letting the walls squeeze it.
+    target) with the goal's own velocity :math:`\dot{\mathbf g}` as feedforward (zero for a
+    static target), saturated at the cruise speed, so that it decays to zero as the
+    formation settles over a static target. With ``footprint`` :math:`\rho > 0` the leader
+    also steers the whole formation: :math:`\mathbf u^r(\mathbf c; \rho)` is the repulsion
+    of eq. (18) felt by a disc of radius :math:`\rho` (the formation, :math:`\eta_k r^*`)
+    centred at the formation centre :math:`\mathbf c`, i.e. eq. (18) with every distance
+    reduced by :math:`\rho`. This keeps the formation centred in a passage instead of
+    letting the walls squeeze it.
 
     Parameters
     ----------
@@ -483,6 +491,8 @@ def leader_guidance(
         Saturation speed :math:`v_c`, m/s.
     center_xy : array_like, shape (..., 2), optional
         Formation centre :math:`\mathbf c` (needed when ``footprint > 0``), m.
+    goal_velocity : array_like, shape (..., 2), default (0, 0)
+        Velocity of the goal :math:`\dot{\mathbf g}` (the target's), m/s.
     footprint : float, default 0
         Radius :math:`\rho` of the formation's disc, m; 0 turns steering off.
     obstacles : Obstacles, optional
@@ -513,12 +523,15 @@ def leader_guidance(
     e_r = float(_v.positive(repulsion_gain, "repulsion_gain"))
     l_safe = float(_v.positive(safety_radius, "safety_radius"))
     step = float(_v.positive(dt, "dt"))
+    tv = _v.point(goal_velocity, "goal_velocity")
     shape = _v.broadcast("goal_xy", q.shape, goal.shape)
     shape = _v.broadcast("center_xy", shape, c.shape)
+    shape = _v.broadcast("goal_velocity", shape, tv.shape)
     out = np.empty((int(np.prod(shape[:-1], dtype=int)), 2))
     _reference_batch(
         _flat(q, shape[:-1], (2,)), _flat(goal, shape[:-1], (2,)), _flat(c, shape[:-1], (2,)),
-        k, vc, obs.rectangles, obs.circles, e_r, l_safe, rho, step, out,
+        _flat(tv, shape[:-1], (2,)), k, vc, obs.rectangles, obs.circles, e_r, l_safe, rho,
+        step, out,
     )  # fmt: skip
     return out.reshape(shape)
 

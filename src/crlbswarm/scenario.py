@@ -52,12 +52,14 @@ __all__ = [
     "CircleObstacle",
     "ControlConfig",
     "DisturbanceConfig",
+    "EstimationConfig",
     "EtaConfig",
     "GraphConfig",
     "RadarConfig",
     "RectangleObstacle",
     "Scenario",
     "ScenarioError",
+    "TargetMotionConfig",
     "TimeConfig",
     "UavsConfig",
     "load_scenario",
@@ -273,6 +275,53 @@ class EtaConfig(_Model):
     samples: Annotated[int, Field(ge=2)] = Field(32, description="points sampled on the path")
 
 
+class EstimationConfig(_Model):
+    """Sensing in the loop (not in the paper): the formation is centred on the UAVs' own
+    estimate of the target, fused by an iterated EKF from their ranges."""
+
+    enabled: bool = Field(False, description="false: the formation knows the true target")
+    prior_offset: Pair = Field(
+        [20.0, 0.0], description="initial estimate minus the true target position, m"
+    )
+    prior_std: PositiveFloat = Field(20.0, description="prior standard deviation per axis, m")
+    velocity_prior_std: PositiveFloat = Field(
+        5.0, description="prior standard deviation of each velocity component, m/s (moving)"
+    )
+    measure_every: Annotated[int, Field(ge=1)] = Field(
+        1, description="ranges are measured and fused every this many steps"
+    )
+
+
+class TargetMotionConfig(_Model):
+    """How the target moves (not in the paper, whose target is static)."""
+
+    model: Literal["static", "constant_velocity", "turning"] = Field(
+        "static", description="static, constant_velocity or turning (coordinated turn)"
+    )
+    velocity: Pair = Field([0.0, 0.0], description="initial velocity, m/s")
+    turn_rate: FiniteFloat = Field(0.0, description="turning: rate of turn, rad/s")
+    acceleration_noise: Annotated[float, Field(ge=0, allow_inf_nan=False)] = Field(
+        0.0, description="std of the white acceleration noise per axis, m/s^2"
+    )
+
+    @model_validator(mode="after")
+    def _options_fit_model(self) -> TargetMotionConfig:
+        if self.model == "static" and (
+            any(self.velocity) or self.turn_rate or self.acceleration_noise
+        ):
+            raise ValueError("a static target takes no velocity, turn_rate or acceleration_noise")
+        if self.model == "constant_velocity" and self.turn_rate:
+            raise ValueError("turn_rate applies to model 'turning' only")
+        if self.model == "turning" and not self.turn_rate:
+            raise ValueError("model 'turning' needs a non-zero turn_rate")
+        return self
+
+    @property
+    def moving(self) -> bool:
+        """Whether the target moves."""
+        return self.model != "static"
+
+
 class Scenario(_Model):
     """A complete mission scenario (see the module docstring and docs/scenarios.md).
 
@@ -302,6 +351,10 @@ class Scenario(_Model):
         Obstacles.
     eta : EtaConfig
         Scaling-factor rule.
+    estimation : EstimationConfig
+        Sensing in the loop (off by default: the formation knows the target).
+    target_motion : TargetMotionConfig
+        Motion of the target (static by default).
     """
 
     name: str = Field("custom", description="short name")
@@ -316,6 +369,8 @@ class Scenario(_Model):
     graph: GraphConfig = GraphConfig()
     obstacles: list[Obstacle] = Field(default_factory=list)
     eta: EtaConfig = EtaConfig()
+    estimation: EstimationConfig = EstimationConfig()
+    target_motion: TargetMotionConfig = TargetMotionConfig()
 
     @model_validator(mode="after")
     def _check_scene(self) -> Scenario:
@@ -581,7 +636,41 @@ _PAPER = {
     ],
 }
 
-_BUILTINS: dict[str, dict[str, Any]] = {"paper": _PAPER}
+_SENSING = {
+    **copy.deepcopy(_PAPER),
+    "name": "sensing",
+    "description": "the paper mission, centred on the UAVs' own estimate from a prior 20 m off",
+    "estimation": {"enabled": True, "prior_offset": [20.0, 0.0], "prior_std": 20.0},
+}
+
+_MOVING = {
+    "name": "moving_target",
+    "description": "6 UAVs catch and track a target moving at 3 m/s, estimated from their ranges",
+    "altitude": 20.0,
+    "target": [60.0, 60.0],
+    "uavs": {"count": 6, "leader": 0, "start_region": [[-10.0, 10.0], [-10.0, 10.0]]},
+    "time": {"step": 0.1, "duration": 150.0},
+    "control": {"epsilon": 0.01, "cruise_speed": 6.0, "safety_radius": 5.0},
+    "disturbance": {"sigma": 0.01},
+    "graph": {"kind": "ring"},
+    "target_motion": {
+        "model": "constant_velocity",
+        "velocity": [3.0, 0.0],
+        "acceleration_noise": 0.05,
+    },
+    "estimation": {
+        "enabled": True,
+        "prior_offset": [20.0, 0.0],
+        "prior_std": 20.0,
+        "velocity_prior_std": 5.0,
+    },
+}
+
+_BUILTINS: dict[str, dict[str, Any]] = {
+    "paper": _PAPER,
+    "sensing": _SENSING,
+    "moving_target": _MOVING,
+}
 
 #: Built-in scenarios by name (read-only view; :func:`load_scenario` uses private copies).
 BUILTIN_SCENARIOS: Mapping[str, dict[str, Any]] = MappingProxyType(copy.deepcopy(_BUILTINS))

@@ -28,7 +28,7 @@ import math
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -46,6 +46,7 @@ from .control import (
 from .design import crlb_bound
 from .fisher import crlb
 from .scenario import Scenario
+from .tracking import mean_range_information, motion_matrices, posterior_crlb, target_trajectories
 
 __all__ = ["MissionResult", "SimulationDivergedError", "simulate", "start_positions"]
 
@@ -55,6 +56,9 @@ DIVERGENCE_LIMIT = 1.0e6
 #: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
 CRLB_TOL = 0.01
 CENTROID_TOL = 0.5
+
+#: Length of the "steady state" window at the end of a mission (estimation metrics), s.
+STEADY_STATE_S = 30.0
 
 #: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
@@ -88,23 +92,152 @@ def _min_separation(q):
     return math.sqrt(best)
 
 
+class Gains(NamedTuple):
+    """Scalars of the mission kernel (a typed tuple for Numba; see the scenario fields)."""
+
+    dt: float
+    eps: float
+    gamma: float
+    kg: float
+    vc: float
+    l_safe: float
+    e_r: float
+    u_max: float
+    eta_on: bool
+    eta_min: float
+    eta_rate: float
+    lookahead: float
+    n_samples: int
+    margin: float
+    radius: float
+    steer: bool
+    leader: int
+    estimate: bool
+    n_state: int
+    every: int
+    snr_constant: float
+    altitude: float
+
+
+@njit(cache=True)
+def _solve_small(a, b, n):
+    """Solve the n x n system a x = b (n <= 4) by Gaussian elimination with pivoting."""
+    m = a[:n, :n].copy()
+    x = b[:n].copy()
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(m[r, c]) > abs(m[piv, c]):
+                piv = r
+        if piv != c:
+            for j in range(n):
+                m[c, j], m[piv, j] = m[piv, j], m[c, j]
+            x[c], x[piv] = x[piv], x[c]
+        for r in range(c + 1, n):
+            f = m[r, c] / m[c, c]
+            for j in range(c, n):
+                m[r, j] -= f * m[c, j]
+            x[r] -= f * x[c]
+    for c in range(n - 1, -1, -1):
+        acc = x[c]
+        for j in range(c + 1, n):
+            acc -= m[c, j] * x[j]
+        x[c] = acc / m[c, c]
+    return x
+
+
+@njit(cache=True)
+def _inverse_small(a, n):
+    out = np.zeros((4, 4))
+    e = np.zeros(4)
+    for j in range(n):
+        e[:] = 0.0
+        e[j] = 1.0
+        col = _solve_small(a, e, n)
+        for i in range(n):
+            out[i, j] = col[i]
+    return out
+
+
+@njit(cache=True)
+def _iekf_update(x, p_cov, q, ranges, g, n_iter):
+    """Iterated EKF update with all M ranges, in information form (Gauss-Newton on the MAP
+    objective, each range weighted by d^4/A at the current iterate). Updates x, p_cov."""
+    n = g.n_state
+    info0 = _inverse_small(p_cov, n)
+    prior = x.copy()
+    xi = x.copy()
+    info = np.zeros((4, 4))
+    h2 = g.altitude * g.altitude
+    for _ in range(n_iter):
+        info[:, :] = info0
+        rhs = np.zeros(4)
+        # - P^-1 (x_i - x_prior)
+        for r in range(n):
+            for c in range(n):
+                rhs[r] -= info0[r, c] * (xi[c] - prior[c])
+        for m in range(q.shape[0]):
+            dx = xi[0] - q[m, 0]
+            dy = xi[1] - q[m, 1]
+            d2 = dx * dx + dy * dy + h2
+            d = math.sqrt(d2)
+            w = g.snr_constant / (d2 * d2)  # 1 / sigma^2 at the iterate
+            hx = dx / d
+            hy = dy / d
+            res = ranges[m] - d
+            info[0, 0] += w * hx * hx
+            info[0, 1] += w * hx * hy
+            info[1, 0] += w * hx * hy
+            info[1, 1] += w * hy * hy
+            rhs[0] += w * hx * res
+            rhs[1] += w * hy * res
+        step = _solve_small(info, rhs, n)
+        for r in range(n):
+            xi[r] += step[r]
+    cov = _inverse_small(info, n)
+    for r in range(n):
+        x[r] = xi[r]
+        for c in range(n):
+            p_cov[r, c] = cov[r, c]
+
+
 @njit(cache=True)
 def _mission(
-    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out,
-    noise, target, delta, leader, indptr, indices, dt,
-    eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
-    eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out, est_out, est_var_out,
+    noise, range_noise, s_true, v_true, delta, indptr, indices, rects, circles,
+    f_mat, q_mat, x0, p0, g,
 ):  # fmt: skip
     """One run. ``q_out[0]`` holds the start; returns -1 or the step that diverged."""
     k_steps = noise.shape[0]
     m_uavs = q_out.shape[1]
+    leader, dt, n = g.leader, g.dt, g.n_state
     u = np.empty((m_uavs, 2))
     vref = np.empty(2)
-    sx, sy = target[0], target[1]
-    eta_step = eta_rate * dt
+    ranges = np.empty(m_uavs)
+    x = x0.copy()
+    p_cov = p0.copy()
+    eta_step = g.eta_rate * dt
+    h2 = g.altitude * g.altitude
     for k in range(k_steps + 1):
         q = q_out[k]
         eta = eta_out[k]
+        # The formation's goal: the UAVs' own estimate of the target, or the truth.
+        if g.estimate:
+            if k % g.every == 0:
+                for m in range(m_uavs):
+                    dx = s_true[k, 0] - q[m, 0]
+                    dy = s_true[k, 1] - q[m, 1]
+                    d2 = dx * dx + dy * dy + h2
+                    ranges[m] = math.sqrt(d2) + d2 / math.sqrt(g.snr_constant) * range_noise[k, m]
+                _iekf_update(x, p_cov, q, ranges, g, 3)
+            sx, sy = x[0], x[1]
+            tvx, tvy = (x[2], x[3]) if n == 4 else (0.0, 0.0)
+            est_out[k, 0] = sx
+            est_out[k, 1] = sy
+            est_var_out[k] = p_cov[0, 0] + p_cov[1, 1]
+        else:
+            sx, sy = s_true[k, 0], s_true[k, 1]
+            tvx, tvy = v_true[k, 0], v_true[k, 1]
         gx = sx + eta * delta[leader, 0]
         gy = sy + eta * delta[leader, 1]
         cx = 0.0
@@ -115,8 +248,8 @@ def _mission(
         cx /= m_uavs
         cy /= m_uavs
         vref[0], vref[1] = _reference(
-            q[leader, 0], q[leader, 1], gx, gy, cx, cy, kg, vc,
-            rects, circles, e_r, l_safe, eta * radius if steer else 0.0, dt,
+            q[leader, 0], q[leader, 1], gx, gy, cx, cy, g.kg, g.vc, tvx, tvy,
+            rects, circles, g.e_r, g.l_safe, eta * g.radius if g.steer else 0.0, dt,
         )  # fmt: skip
         vref_out[k, 0] = vref[0]
         vref_out[k, 1] = vref[1]
@@ -130,43 +263,59 @@ def _mission(
         if k == k_steps:
             break
         # Eqs. (18)-(19) and the motion model, eq. (3).
-        _formation(q, delta, eta, eps, indptr, indices, u)
+        _formation(q, delta, eta, g.eps, indptr, indices, u)
         v = v_out[k]
         q_next = q_out[k + 1]
         for m in range(m_uavs):
-            rx, ry = _repulsion_point(q[m, 0], q[m, 1], rects, circles, e_r, l_safe, u_max)
+            rx, ry = _repulsion_point(q[m, 0], q[m, 1], rects, circles, g.e_r, g.l_safe, g.u_max)
             q_next[m, 0] = q[m, 0] + u[m, 0] + rx + v[m, 0] * dt + noise[k, m, 0]
             q_next[m, 1] = q[m, 1] + u[m, 1] + ry + v[m, 1] * dt + noise[k, m, 1]
             if not (abs(q_next[m, 0]) < DIVERGENCE_LIMIT and abs(q_next[m, 1]) < DIVERGENCE_LIMIT):
                 return k + 1
         cost_out[k] = _cost(q, q_next, delta, vref, dt, indptr, indices)
         # Corrected consensus, eq. (14).
-        _consensus(v, vref, leader, indptr, indices, gamma, v_out[k + 1])
+        _consensus(v, vref, leader, indptr, indices, g.gamma, v_out[k + 1])
         # Scaling factor: rate-limited step toward the free-width rule.
-        if eta_on:
+        if g.eta_on:
             goal = _eta_goal(
-                cx, cy, sx, sy, radius, rects, circles,
-                margin, lookahead, n_samples, eta_min,
+                cx, cy, sx, sy, g.radius, rects, circles,
+                g.margin, g.lookahead, g.n_samples, g.eta_min,
             )  # fmt: skip
             eta_out[k + 1] = eta + min(eta_step, max(-eta_step, goal - eta))
         else:
             eta_out[k + 1] = 1.0
+        # Prediction of the target estimate with the target's motion model.
+        if g.estimate:
+            x_new = np.zeros(4)
+            for r in range(n):
+                for c in range(n):
+                    x_new[r] += f_mat[r, c] * x[c]
+            fp = np.zeros((4, 4))
+            for r in range(n):
+                for c in range(n):
+                    for j in range(n):
+                        fp[r, c] += f_mat[r, j] * p_cov[j, c]
+            for r in range(n):
+                x[r] = x_new[r]
+                for c in range(n):
+                    acc = q_mat[r, c]
+                    for j in range(n):
+                        acc += fp[r, j] * f_mat[c, j]
+                    p_cov[r, c] = acc
     return -1
 
 
 @njit(cache=True, parallel=True)
 def _mission_batch(
-    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out, status,
-    noise, target, delta, leader, indptr, indices, dt,
-    eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
-    eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+    q_out, v_out, vref_out, eta_out, clear_out, sep_out, cost_out, est_out, est_var_out,
+    status, noise, range_noise, s_true, v_true, delta, indptr, indices, rects, circles,
+    f_mat, q_mat, x0, p0, g,
 ):  # fmt: skip
     for b in prange(q_out.shape[0]):
         status[b] = _mission(
             q_out[b], v_out[b], vref_out[b], eta_out[b], clear_out[b], sep_out[b],
-            cost_out[b], noise[b], target, delta, leader, indptr, indices, dt,
-            eps, gamma, kg, vc, rects, circles, l_safe, e_r, u_max,
-            eta_on, eta_min, eta_rate, lookahead, n_samples, margin, radius, steer,
+            cost_out[b], est_out[b], est_var_out[b], noise[b], range_noise[b], s_true[b],
+            v_true[b], delta, indptr, indices, rects, circles, f_mat, q_mat, x0[b], p0, g,
         )  # fmt: skip
 
 
@@ -192,6 +341,16 @@ class MissionResult:
         m/s (``None`` if ``keep_trajectories=False``).
     centroid : ndarray, shape (B, K+1, 2)
         Formation centroid, m.
+    target : ndarray, shape (B, K+1, 2)
+        True target position, m (constant for a static target).
+    estimate : ndarray, shape (B, K+1, 2), or None
+        The UAVs' own estimate of the target after each step's measurement (sensing in the
+        loop), m; ``None`` when estimation is off.
+    estimate_variance : ndarray, shape (B, K+1), or None
+        Trace of the position block of the filter's covariance, m^2.
+    pcrb : ndarray, shape (K+1,), or None
+        Posterior CRLB of the position (:func:`crlbswarm.tracking.posterior_crlb`, averaged
+        over the runs of the batch), m^2.
     reference_velocity : ndarray, shape (B, K+1, 2)
         Leader's reference :math:`\\mathbf v^*_k`, m/s.
     eta : ndarray, shape (B, K+1)
@@ -215,6 +374,10 @@ class MissionResult:
     velocities: np.ndarray | None
     centroid: np.ndarray
     reference_velocity: np.ndarray
+    target: np.ndarray
+    estimate: np.ndarray | None
+    estimate_variance: np.ndarray | None
+    pcrb: np.ndarray | None
     eta: np.ndarray
     crlb: np.ndarray
     cost: np.ndarray
@@ -233,9 +396,24 @@ class MissionResult:
 
     @property
     def centroid_error(self) -> np.ndarray:
-        """Distance from the formation centroid to the target, m, shape (B, K+1)."""
-        offset = self.centroid - np.asarray(self.scenario.target)
+        """Distance from the formation centroid to the (true) target, m, shape (B, K+1)."""
+        offset = self.centroid - self.target
         return np.hypot(offset[..., 0], offset[..., 1])
+
+    @property
+    def estimation_error(self) -> np.ndarray | None:
+        """Distance from the UAVs' estimate to the true target, m, shape (B, K+1)."""
+        if self.estimate is None:
+            return None
+        offset = self.estimate - self.target
+        return np.hypot(offset[..., 0], offset[..., 1])
+
+    @property
+    def steady_state(self) -> np.ndarray:
+        """Mask of the steps in the last :data:`STEADY_STATE_S` seconds (at most the last
+        half of the mission), shape (K+1,)."""
+        window = min(STEADY_STATE_S, 0.5 * float(self.time[-1]))
+        return self.time >= self.time[-1] - window - 1e-9
 
     def _metrics(self) -> dict[str, np.ndarray]:
         ratio = self.crlb / self.bound
@@ -256,6 +434,20 @@ class MissionResult:
             "min_separation_m": self.separation.min(axis=1),
             "max_cost": self.cost.max(axis=1),
             "final_cost": self.cost[:, -1],
+            **self._estimation_metrics(),
+        }
+
+    def _estimation_metrics(self) -> dict[str, np.ndarray]:
+        error = self.estimation_error
+        if error is None:
+            return {}
+        tail = self.steady_state
+        return {
+            "final_estimation_error_m": error[:, -1],
+            "steady_rms_estimation_error_m": np.sqrt(np.mean(error[:, tail] ** 2, axis=1)),
+            "steady_max_error_over_sqrt_crlb": np.max(
+                error[:, tail] / np.sqrt(self.crlb[:, tail]), axis=1
+            ),
         }
 
     def _run_index(self, run: int) -> int:
@@ -347,9 +539,17 @@ class MissionResult:
 # ---------------------------------------------------------------------------------------
 # Driver
 # ---------------------------------------------------------------------------------------
-def _streams(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
-    start_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
-    return np.random.default_rng(start_ss), np.random.default_rng(noise_ss)
+def _streams(seed: int, count: int = 2) -> list[np.random.Generator]:
+    """The run's independent streams: start, disturbance, ranges, target motion (in that
+    order; spawning more children leaves the first ones unchanged)."""
+    return [np.random.default_rng(ss) for ss in np.random.SeedSequence(seed).spawn(count)]
+
+
+def _start(scenario: Scenario, rng: np.random.Generator) -> np.ndarray:
+    if scenario.uavs.start is not None:
+        return np.array(scenario.uavs.start, dtype=float)
+    (x0, x1), (y0, y1) = scenario.uavs.start_region
+    return rng.uniform((x0, y0), (x1, y1), size=(scenario.uavs.count, 2))
 
 
 def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
@@ -367,11 +567,7 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
     ndarray, shape (M, 2)
         Start positions, m.
     """
-    if scenario.uavs.start is not None:
-        return np.array(scenario.uavs.start, dtype=float)
-    (x0, x1), (y0, y1) = scenario.uavs.start_region
-    rng, _ = _streams(seed)
-    return rng.uniform((x0, y0), (x1, y1), size=(scenario.uavs.count, 2))
+    return _start(scenario, _streams(seed)[0])
 
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
@@ -455,19 +651,47 @@ def simulate(
     delta = np.ascontiguousarray(sc.formation - target)
     radius = float(np.max(np.hypot(delta[:, 0], delta[:, 1])))
     adj, obstacles, ctl, eta = sc.adjacency, sc.obstacle_set, sc.control, sc.eta
-    margin = ctl.safety_radius if eta.margin is None else eta.margin
+    est, motion = sc.estimation, sc.target_motion
+    radar = sc.radar.to_radar()
+    f_mat, q_mat, n_state = motion_matrices(
+        motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
+    )
+    p0 = np.diag([est.prior_std**2] * 2 + [est.velocity_prior_std**2] * 2)
+    gains = Gains(
+        dt=sc.time.step,
+        eps=ctl.epsilon,
+        gamma=ctl.gamma,
+        kg=ctl.guidance_gain,
+        vc=ctl.cruise_speed,
+        l_safe=ctl.safety_radius,
+        e_r=ctl.repulsion_gain,
+        u_max=ctl.repulsion_max_step,
+        eta_on=eta.enabled,
+        eta_min=eta.minimum,
+        eta_rate=eta.rate,
+        lookahead=eta.lookahead,
+        n_samples=eta.samples,
+        margin=ctl.safety_radius if eta.margin is None else eta.margin,
+        radius=radius,
+        steer=ctl.formation_steering,
+        leader=sc.uavs.leader,
+        estimate=est.enabled,
+        n_state=n_state,
+        every=est.measure_every,
+        snr_constant=float(radar.snr_constant),
+        altitude=sc.altitude,
+    )
 
     traj_shape = (n_runs, k_steps + 1, m_uavs, 2)
     _check_memory(n_runs, k_steps, m_uavs, keep_trajectories)
     positions = np.empty(traj_shape) if keep_trajectories else None
     velocities = np.empty(traj_shape) if keep_trajectories else None
-    centroid = np.empty((n_runs, k_steps + 1, 2))
-    crlb_arr = np.empty((n_runs, k_steps + 1))
-    radar = sc.radar.to_radar()
-    vref = np.empty((n_runs, k_steps + 1, 2))
-    eta_arr = np.empty((n_runs, k_steps + 1))
-    clearance = np.empty((n_runs, k_steps + 1))
-    separation = np.empty((n_runs, k_steps + 1))
+    series = np.empty((n_runs, k_steps + 1))
+    centroid, vref, target_xy = (np.empty((n_runs, k_steps + 1, 2)) for _ in range(3))
+    crlb_arr, eta_arr, clearance, separation = (np.empty_like(series) for _ in range(4))
+    estimate = np.full((n_runs, k_steps + 1, 2), np.nan) if est.enabled else None
+    estimate_var = np.full((n_runs, k_steps + 1), np.nan) if est.enabled else None
+    fim_sum = np.zeros((k_steps + 1, 2, 2))
     cost = np.empty((n_runs, k_steps))
     status = np.empty(n_runs, dtype=np.int64)
 
@@ -477,6 +701,9 @@ def simulate(
     per_run = k_steps * m_uavs * 2 * 8
     chunk_runs = max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
     noise_buf = np.empty((chunk_runs, k_steps, m_uavs, 2))
+    range_buf = np.zeros((chunk_runs, k_steps + 1, m_uavs))
+    est_buf = np.zeros((chunk_runs, k_steps + 1, 2))
+    est_var_buf = np.zeros((chunk_runs, k_steps + 1))
     if not keep_trajectories:
         pos_buf = np.empty((chunk_runs, *traj_shape[1:]))
         vel_buf = np.empty_like(pos_buf)
@@ -485,21 +712,30 @@ def simulate(
         pos = positions[lo:hi] if keep_trajectories else pos_buf[: hi - lo]
         vel = velocities[lo:hi] if keep_trajectories else vel_buf[: hi - lo]
         noise = noise_buf[: hi - lo]
+        range_noise = range_buf[: hi - lo]
+        motion_rngs = []
         for i, s in enumerate(seed_arr[lo:hi]):
-            pos[i, 0] = start_positions(sc, int(s))
-            _, noise_rng = _streams(int(s))
+            start_rng, noise_rng, range_rng, motion_rng = _streams(int(s), 4)
+            pos[i, 0] = _start(sc, start_rng)
             noise_rng.standard_normal(out=noise[i])
+            if est.enabled:
+                range_rng.standard_normal(out=range_noise[i])
+            motion_rngs.append(motion_rng)
         noise *= sc.disturbance.sigma
+        truth = target_trajectories(
+            target, np.asarray(motion.velocity, dtype=float), motion.model, sc.time.step,
+            k_steps, motion_rngs, motion.turn_rate, motion.acceleration_noise,
+        )  # fmt: skip
+        x0 = np.zeros((hi - lo, 4))
+        x0[:, :2] = truth[:, 0, :2] + np.asarray(est.prior_offset)
         vel[:, 0] = 0.0
         eta_arr[lo:hi, 0] = 1.0
         _mission_batch(
-            pos, vel, vref[lo:hi], eta_arr[lo:hi],
-            clearance[lo:hi], separation[lo:hi], cost[lo:hi], status[lo:hi],
-            noise, target, delta, sc.uavs.leader, adj.indptr, adj.indices, sc.time.step,
-            ctl.epsilon, ctl.gamma, ctl.guidance_gain, ctl.cruise_speed,
-            obstacles.rectangles, obstacles.circles, ctl.safety_radius, ctl.repulsion_gain,
-            ctl.repulsion_max_step, eta.enabled, eta.minimum, eta.rate, eta.lookahead,
-            eta.samples, margin, radius, ctl.formation_steering,
+            pos, vel, vref[lo:hi], eta_arr[lo:hi], clearance[lo:hi], separation[lo:hi],
+            cost[lo:hi], est_buf[: hi - lo], est_var_buf[: hi - lo], status[lo:hi], noise,
+            range_noise, np.ascontiguousarray(truth[..., :2]),
+            np.ascontiguousarray(truth[..., 2:]), delta, adj.indptr, adj.indices,
+            obstacles.rectangles, obstacles.circles, f_mat, q_mat, x0, p0, gains,
         )  # fmt: skip
         bad = np.flatnonzero(status[lo:hi] >= 0)
         if bad.size:
@@ -509,11 +745,19 @@ def simulate(
                 f"(t = {status[b] * sc.time.step:g} s): NaN or positions beyond "
                 f"{DIVERGENCE_LIMIT:g} m; check the gains and the disturbance of the scenario"
             )
-        crlb_arr[lo:hi] = crlb(pos, target, sc.altitude, radar)
+        target_xy[lo:hi] = truth[..., :2]
+        crlb_arr[lo:hi] = crlb(pos, target_xy[lo:hi], sc.altitude, radar)
         centroid[lo:hi] = pos.mean(axis=-2)
+        if est.enabled:
+            estimate[lo:hi] = est_buf[: hi - lo]
+            estimate_var[lo:hi] = est_var_buf[: hi - lo]
+            fim_sum += mean_range_information(pos, target_xy[lo:hi], sc.altitude, radar)
         if progress is not None:
             progress(hi)
 
+    pcrb = None
+    if est.enabled:
+        pcrb = posterior_crlb(fim_sum / n_runs, f_mat, q_mat, p0, n_state, est.measure_every)
     return MissionResult(
         scenario=sc,
         seeds=seed_arr,
@@ -522,6 +766,10 @@ def simulate(
         velocities=velocities,
         reference_velocity=vref,
         centroid=centroid,
+        target=target_xy,
+        estimate=estimate,
+        estimate_variance=estimate_var,
+        pcrb=pcrb,
         eta=eta_arr,
         crlb=crlb_arr,
         cost=cost,

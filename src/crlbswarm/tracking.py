@@ -1,0 +1,210 @@
+r"""Moving targets: motion models, simulated target trajectories and the posterior CRLB.
+
+Not in the paper, whose target is static. The target state is
+:math:`\mathbf x = (x, y, v_x, v_y)` and moves by a linear Gauss-Markov model
+
+.. math:: \mathbf x_{k+1} = \mathbf F \mathbf x_k + \mathbf G \mathbf a_k,
+          \qquad \mathbf a_k \sim \mathcal N(0, \sigma_a^2 \mathbf I_2),
+          \qquad \mathbf Q = \sigma_a^2 \mathbf G \mathbf G^\top ,
+
+with piecewise-constant white acceleration :math:`\mathbf a_k`
+(:math:`\mathbf G = [\tfrac{\Delta T^2}{2}\mathbf I_2;\ \Delta T\,\mathbf I_2]`) and
+:math:`\mathbf F` the constant-velocity model or the coordinated turn of known rate
+:math:`\omega` (Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+Navigation*, Wiley 2001, Sec. 6.3 and 11.7). A static target is the 2-state model
+:math:`\mathbf F = \mathbf I_2`, :math:`\mathbf Q = 0`.
+
+The posterior CRLB (PCRB) of Tichavsky, Muravchik and Nehorai (IEEE Trans. Signal Process.
+46(5), 1998, eq. (21)) for this linear-Gaussian motion and the range measurements is the
+recursion
+
+.. math:: \mathbf J_{k+1} = (\mathbf Q + \mathbf F \mathbf J_k^{-1}\mathbf F^\top)^{-1}
+          + E[\mathbf J_z(\mathbf x_{k+1})],
+          \qquad \mathbf J_0 = \mathbf P_0^{-1} + E[\mathbf J_z(\mathbf x_0)],
+
+where :math:`\mathbf J_z` is the FIM of one set of ranges (eq. (8) in the position block,
+zero elsewhere), added at the steps where ranges are measured; the expectation over the
+target's (and the UAVs') trajectories is taken as the average over the simulated runs. The
+bound on the mean squared position error at step :math:`k` is the trace of the position
+block of :math:`\mathbf J_k^{-1}`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .fisher import fisher_information
+from .radar import Radar
+
+__all__ = [
+    "mean_range_information",
+    "motion_matrices",
+    "posterior_crlb",
+    "target_trajectories",
+]
+
+
+def motion_matrices(
+    model: str, dt: float, turn_rate: float = 0.0, acceleration_noise: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, int]:
+    r"""Transition and process-noise matrices of a target motion model.
+
+    Parameters
+    ----------
+    model : {"static", "constant_velocity", "turning"}
+        Motion model.
+    dt : float
+        Time step, s.
+    turn_rate : float, default 0
+        Rate of turn of the ``turning`` model, rad/s.
+    acceleration_noise : float, default 0
+        Standard deviation :math:`\sigma_a` of the white acceleration per axis, m/s^2.
+
+    Returns
+    -------
+    F : ndarray, shape (4, 4)
+        Transition matrix (top-left 2x2 identity for ``static``).
+    Q : ndarray, shape (4, 4)
+        Process-noise covariance.
+    n_state : int
+        2 for ``static`` (position only), 4 otherwise.
+    """
+    f = np.eye(4)
+    q = np.zeros((4, 4))
+    if model == "static":
+        return f, q, 2
+    if model == "constant_velocity":
+        f[0, 2] = f[1, 3] = dt
+    elif model == "turning":
+        w = turn_rate
+        s, c = math.sin(w * dt), math.cos(w * dt)
+        f[:2, 2:] = [[s / w, -(1.0 - c) / w], [(1.0 - c) / w, s / w]]
+        f[2:, 2:] = [[c, -s], [s, c]]
+    else:
+        raise ValueError(f"model: expected static, constant_velocity or turning, got {model!r}")
+    g = np.vstack([0.5 * dt * dt * np.eye(2), dt * np.eye(2)])
+    q = acceleration_noise**2 * (g @ g.T)
+    return f, q, 4
+
+
+def target_trajectories(
+    start_xy: np.ndarray,
+    velocity: np.ndarray,
+    model: str,
+    dt: float,
+    n_steps: int,
+    rngs: list[np.random.Generator],
+    turn_rate: float = 0.0,
+    acceleration_noise: float = 0.0,
+) -> np.ndarray:
+    r"""True target states of a batch of runs, one random stream per run.
+
+    Parameters
+    ----------
+    start_xy : ndarray, shape (2,)
+        Initial position, m.
+    velocity : ndarray, shape (2,)
+        Initial velocity, m/s.
+    model : {"static", "constant_velocity", "turning"}
+        Motion model (:func:`motion_matrices`).
+    dt : float
+        Time step, s.
+    n_steps : int
+        Number of steps K.
+    rngs : list of numpy.random.Generator
+        One stream per run (the acceleration noise); unused if the noise is zero.
+    turn_rate : float, default 0
+        Rate of turn of ``turning``, rad/s.
+    acceleration_noise : float, default 0
+        :math:`\sigma_a`, m/s^2.
+
+    Returns
+    -------
+    ndarray, shape (B, K+1, 4)
+        Position and velocity of the target at every step.
+    """
+    f, _, _ = motion_matrices(model, dt, turn_rate, acceleration_noise)
+    g = np.vstack([0.5 * dt * dt * np.eye(2), dt * np.eye(2)])
+    out = np.empty((len(rngs), n_steps + 1, 4))
+    out[:, 0, :2] = start_xy
+    out[:, 0, 2:] = velocity if model != "static" else 0.0
+    if acceleration_noise > 0 and model != "static":
+        accel = np.stack([r.standard_normal((n_steps, 2)) for r in rngs]) * acceleration_noise
+    else:
+        accel = np.zeros((len(rngs), n_steps, 2))
+    for k in range(n_steps):
+        out[:, k + 1] = out[:, k] @ f.T + accel[:, k] @ g.T
+    return out
+
+
+def mean_range_information(
+    uav_xy: np.ndarray, target_xy: np.ndarray, altitude: float, radar: Radar
+) -> np.ndarray:
+    r"""Sum over runs of the FIM of one set of ranges at every step (:func:`posterior_crlb`).
+
+    Parameters
+    ----------
+    uav_xy : ndarray, shape (B, K+1, M, 2)
+        UAV positions, m.
+    target_xy : ndarray, shape (B, K+1, 2)
+        True target positions, m.
+    altitude : float
+        Flight altitude, m.
+    radar : Radar
+        Link parameters.
+
+    Returns
+    -------
+    ndarray, shape (K+1, 2, 2)
+        :math:`\sum_b \mathbf J_s` over the B runs (divide by B for the mean).
+    """
+    return fisher_information(uav_xy, target_xy, altitude, radar).sum(axis=0)
+
+
+def posterior_crlb(
+    mean_fim: np.ndarray,
+    f: np.ndarray,
+    q: np.ndarray,
+    p0: np.ndarray,
+    n_state: int,
+    measure_every: int = 1,
+) -> np.ndarray:
+    r"""Posterior CRLB of the target position over time (Tichavsky et al. 1998).
+
+    Parameters
+    ----------
+    mean_fim : ndarray, shape (K+1, 2, 2)
+        :math:`E[\mathbf J_z]` at every step: the FIM of one set of ranges (eq. (8)),
+        averaged over runs.
+    f : ndarray, shape (4, 4)
+        Transition matrix (:func:`motion_matrices`).
+    q : ndarray, shape (4, 4)
+        Process-noise covariance (:func:`motion_matrices`).
+    p0 : ndarray, shape (4, 4)
+        Prior covariance of the state.
+    n_state : int
+        2 (static target, position only) or 4.
+    measure_every : int, default 1
+        Ranges are measured at the steps that are multiples of this.
+
+    Returns
+    -------
+    ndarray, shape (K+1,)
+        Bound on the mean squared position error after each step's measurement, m^2.
+    """
+    n = n_state
+    steps = mean_fim.shape[0]
+    fim = mean_fim
+    fk, qk = f[:n, :n], q[:n, :n]
+    info = np.linalg.inv(p0[:n, :n])
+    out = np.empty(steps)
+    for k in range(steps):
+        if k > 0:
+            info = np.linalg.inv(qk + fk @ np.linalg.inv(info) @ fk.T)
+        if k % measure_every == 0:
+            info = info.copy()
+            info[:2, :2] += fim[k]
+        out[k] = np.trace(np.linalg.inv(info)[:2, :2])
+    return out
