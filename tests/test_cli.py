@@ -115,22 +115,32 @@ def test_missing_command_is_an_error(capsys):
     assert capsys.readouterr().err.count("\n") == 1
 
 
-def test_figures_writes_everything(tmp_path, capsys):
+@pytest.fixture
+def small_figures(monkeypatch):
+    """Fewer Monte Carlo trials and runs for the figures command (same code paths)."""
+    import crlbswarm.cli as cli_module
+
+    monkeypatch.setattr(cli_module, "FIGURE_TRIALS", 50)
+    monkeypatch.setattr(cli_module, "FIGURE_RUNS", 3)
+
+
+def test_figures_writes_everything(tmp_path, capsys, small_figures):
     out = tmp_path / "figs"
     status, _, err = run(capsys, "figures", "--out", str(out))
     assert status == 0, err
     names = sorted(p.name for p in out.iterdir())
-    assert names == [
-        "fig2_crlb_vs_altitude.csv",
-        "fig2_crlb_vs_altitude.png",
-        "fig3_formation_evolution.csv",
-        "fig3_formation_evolution.png",
-        "fig4_crlb_and_cost.csv",
-        "fig4_crlb_and_cost.png",
-        "manifest.json",
-        "optimal_elevation.csv",
-        "optimal_elevation.png",
+    stems = [
+        "estimator_mse_vs_crlb",
+        "fig2_crlb_vs_altitude",
+        "fig3_formation_evolution",
+        "fig4_crlb_and_cost",
+        "moving_target_tracking",
+        "moving_target_trajectories",
+        "optimal_elevation",
+        "sensing_in_the_loop",
     ]
+    expected = sorted([f"{s}.{ext}" for s in stems for ext in ("csv", "png")] + ["manifest.json"])
+    assert names == expected
     manifest = json.loads((out / "manifest.json").read_text())
     assert sorted(manifest["files"]) == [n for n in names if n != "manifest.json"]
     assert manifest["fig2_crlb_vs_altitude"]["benchmark_parameters"]["seed"] == 0
@@ -147,7 +157,7 @@ def test_figures_writes_everything(tmp_path, capsys):
     assert 45.0 < elev["elevation_deg"][-1] < 46.0
 
 
-def test_figures_in_pdf(tmp_path, capsys):
+def test_figures_in_pdf(tmp_path, capsys, small_figures):
     status, _, _ = run(capsys, "figures", "--out", str(tmp_path), "--format", "pdf")
     assert status == 0
     assert (tmp_path / "fig2_crlb_vs_altitude.pdf").read_bytes()[:4] == b"%PDF"
@@ -176,7 +186,7 @@ def test_console_script_entry_point():
     assert "--uavs" in proc.stderr
 
 
-def test_figures_3_and_4_data(tmp_path, capsys):
+def test_figures_3_and_4_data(tmp_path, capsys, small_figures):
     """Fig. 4's CSV ends at the bound with eta back at 1; Fig. 3's has every UAV's track."""
     status, _, err = run(capsys, "figures", "--out", str(tmp_path), "--seed", "2")
     assert status == 0, err
@@ -188,7 +198,18 @@ def test_figures_3_and_4_data(tmp_path, capsys):
     assert np.isnan(ts["cost"][-1])
     traj = np.genfromtxt(tmp_path / "fig3_formation_evolution.csv", delimiter=",", names=True)
     assert {f"x_uav{m}" for m in range(1, 7)} <= set(traj.dtype.names)
-    assert json.loads((tmp_path / "manifest.json").read_text())["fig4_crlb_and_cost"]["seed"] == 2
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["fig4_crlb_and_cost"]["seed"] == 2
+    assert manifest["sensing_in_the_loop"]["seeds"] == [2, 4]
+    mc = np.genfromtxt(tmp_path / "estimator_mse_vs_crlb.csv", delimiter=",", names=True)
+    assert np.all(mc["mse_low_optimal_m2"] <= mc["mse_optimal_m2"])
+    assert np.all(mc["mse_optimal_m2"] <= mc["mse_high_optimal_m2"])
+    low = mc["altitude_m"] < 50.0
+    ratio = mc["mse_optimal_m2"][low] / mc["crlb_optimal_m2"][low]
+    assert np.all((ratio > 0.5) & (ratio < 2.0))  # 50 trials: loose, the tests of
+    # test_montecarlo.py check efficiency with 20 000 trials
+    track = np.genfromtxt(tmp_path / "moving_target_tracking.csv", delimiter=",", names=True)
+    assert track["rms_estimation_error_m"][-1] < 2.0 * np.sqrt(track["pcrb_m2"][-1])
 
 
 def test_scenario_show_round_trips(tmp_path, capsys):

@@ -28,6 +28,10 @@ __all__ = ["main"]
 
 EXIT_USAGE = 2
 
+#: Monte Carlo trials per point of the estimator figure, and runs of the sensing figures.
+FIGURE_TRIALS = 2000
+FIGURE_RUNS = 50
+
 
 class UsageError(Exception):
     """An error the user can fix; printed as one line, exit status 2."""
@@ -297,9 +301,12 @@ def _make_out(out: Path) -> Path:
 
 def _cmd_figures(args: argparse.Namespace) -> int:
     from .experiments import crlb_vs_altitude, optimal_elevation_curve
+    from .montecarlo import estimator_vs_altitude
     from .output import save_figure, write_csv, write_json
     from .plots import (
         plot_crlb_vs_altitude,
+        plot_estimation_timeseries,
+        plot_estimator_vs_altitude,
         plot_mission_timeseries,
         plot_mission_trajectories,
         plot_optimal_elevation,
@@ -315,6 +322,10 @@ def _cmd_figures(args: argparse.Namespace) -> int:
         raise _as_option_error(exc) from exc
     curve = optimal_elevation_curve()
     mission = simulate(load_scenario("paper"), seed=args.seed)
+    mc = estimator_vs_altitude(n_trials=FIGURE_TRIALS, seed=args.seed)
+    seeds = range(args.seed, args.seed + FIGURE_RUNS)
+    sensing = simulate(load_scenario("sensing"), seeds=seeds)
+    moving = simulate(load_scenario("moving_target"), seeds=seeds)
     figures = {
         "fig2_crlb_vs_altitude": (plot_crlb_vs_altitude(sweep), sweep.columns()),
         "optimal_elevation": (plot_optimal_elevation(curve), curve.columns()),
@@ -323,6 +334,19 @@ def _cmd_figures(args: argparse.Namespace) -> int:
             mission.trajectory_columns(),
         ),
         "fig4_crlb_and_cost": (plot_mission_timeseries(mission), mission.timeseries_columns()),
+        "estimator_mse_vs_crlb": (plot_estimator_vs_altitude(mc), mc.columns()),
+        "sensing_in_the_loop": (
+            plot_estimation_timeseries(sensing),
+            sensing.estimation_columns(),
+        ),
+        "moving_target_tracking": (
+            plot_estimation_timeseries(moving),
+            moving.estimation_columns(),
+        ),
+        "moving_target_trajectories": (
+            plot_mission_trajectories(moving),
+            moving.trajectory_columns(),
+        ),
     }
     manifest = {
         "crlbswarm_version": __version__,
@@ -341,6 +365,21 @@ def _cmd_figures(args: argparse.Namespace) -> int:
             "what": "CRLB, bound, cost eq. (15), eta and clearance vs time, scenario 'paper'",
             "seed": args.seed,
             "metrics": {k: v[0].item() for k, v in mission.metrics.items()},
+        },
+        "estimator_mse_vs_crlb": {
+            "what": "MSE of the MLE (95% CI) and CRLB vs altitude, F* and the benchmarks",
+            "trials_per_point": FIGURE_TRIALS,
+            "seed": args.seed,
+        },
+        "sensing_in_the_loop": {
+            "what": "RMS estimation error vs sqrt(PCRB) and sqrt(CRLB), scenario 'sensing'",
+            "seeds": [seeds[0], seeds[-1]],
+            "summary": sensing.summary(),
+        },
+        "moving_target_tracking": {
+            "what": "tracking RMSE vs sqrt(PCRB), scenario 'moving_target'",
+            "seeds": [seeds[0], seeds[-1]],
+            "summary": moving.summary(),
         },
         "files": [],
     }
@@ -421,9 +460,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         "clearance": result.clearance,
         "separation": result.separation,
         "bound": np.array(result.bound),
-        "target": np.asarray(scenario.target),
+        "target": result.target,
         "formation": scenario.formation,
     }
+    if result.estimate is not None:
+        arrays["estimate"] = result.estimate
+        arrays["estimate_variance"] = result.estimate_variance
+        arrays["pcrb"] = result.pcrb
     if result.positions is not None:
         arrays["positions"] = result.positions
         arrays["velocities"] = result.velocities

@@ -16,12 +16,15 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
 from .experiments import FORMATION_LABELS, AltitudeSweep, ElevationCurve
+from .montecarlo import EstimatorSweep
 from .simulation import MissionResult
 
 __all__ = [
     "mission_snapshot_steps",
     "passage_interval",
     "plot_crlb_vs_altitude",
+    "plot_estimation_timeseries",
+    "plot_estimator_vs_altitude",
     "plot_mission_timeseries",
     "plot_mission_trajectories",
     "plot_optimal_elevation",
@@ -240,7 +243,12 @@ def plot_mission_trajectories(
         raise ValueError("result: has no trajectories (simulated with keep_trajectories=False)")
     q = result.positions[_check_run(result, run)]
     if ax is None:
-        ax = Figure(figsize=(6.4, 6.4), layout="constrained").add_subplot()
+        # Size the figure to the scene's aspect ratio (a long chase is wide, not square).
+        span = np.ptp(np.concatenate([q.reshape(-1, 2), result.target[run]]), axis=0) + 20.0
+        height = float(np.clip(6.4 * span[1] / span[0], 3.2, 7.0)) + 0.8
+        ax = Figure(
+            figsize=(6.4 if height > 4.5 else 9.0, height), layout="constrained"
+        ).add_subplot()
     fig = ax.figure
     _draw_obstacles(ax, result)
     leader = result.scenario.uavs.leader
@@ -264,19 +272,20 @@ def plot_mission_trajectories(
             xytext=(3, 3),
             textcoords="offset points",
         )
+    # F* over the target where it is at the end (the target may move).
+    target_path = result.target[run]
+    final_target = target_path[-1]
+    slots = result.scenario.formation - np.asarray(result.scenario.target) + final_target
     ax.add_patch(
         Polygon(
-            result.scenario.formation,
-            closed=True,
-            fill=False,
-            ec="C3",
-            ls="--",
-            lw=1.0,
-            label="F* (CRLB-optimal)",
+            slots, closed=True, fill=False, ec="C3", ls="--", lw=1.0, label="F* (CRLB-optimal)"
         )
     )
-    tx, ty = result.scenario.target
-    ax.plot([tx], [ty], marker="*", ms=12, color="C3", ls="none", label="target")
+    if np.ptp(target_path, axis=0).max() > 0:
+        ax.plot(*target_path.T, color="C3", lw=1.0, ls=":", label="target path")
+    if result.estimate is not None:
+        ax.plot(*result.estimate[run].T, color="C1", lw=0.8, alpha=0.8, label="UAVs' estimate")
+    ax.plot(*final_target, marker="*", ms=12, color="C3", ls="none", label="target")
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x (m)")
@@ -285,7 +294,7 @@ def plot_mission_trajectories(
         f"Formation evolution, scenario '{result.scenario.name}', seed {result.seeds[run]}"
     )
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=8, loc="best")
     return fig
 
 
@@ -351,4 +360,114 @@ def plot_mission_timeseries(
         "CRLB and control cost over time"
         + (f" (shaded: passage, {window[0]:.0f}-{window[1]:.0f} s)" if window else "")
     )
+    return fig
+
+
+def plot_estimator_vs_altitude(
+    sweep: EstimatorSweep, axes: Sequence[Axes] | None = None
+) -> Figure:
+    """MSE of the MLE (markers, 95 % intervals) beside each formation's CRLB (lines).
+
+    The lower panel shows MSE / CRLB: 1 for an efficient estimator; above 1 where the
+    likelihood is no longer locally Gaussian (low SNR, poor geometry); below 1 where the
+    MLE is biased (the CRLB bounds unbiased estimators only).
+
+    Parameters
+    ----------
+    sweep : EstimatorSweep
+        Result of :func:`crlbswarm.estimator_vs_altitude`.
+    axes : sequence of two matplotlib.axes.Axes, optional
+        Axes for the two panels; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure holding the axes.
+    """
+    if axes is None:
+        fig = Figure(figsize=(6.4, 7.2), layout="constrained")
+        axes = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    if len(axes) != 2:
+        raise ValueError(f"axes: expected two axes, got {len(axes)}")
+    ax, ratio_ax = axes
+    fig = ax.figure
+    h = sweep.altitude
+    cols = sweep.columns()
+    for name in sweep.results:
+        style = _STYLES.get(name, {})
+        color = style.get("color")
+        bound = cols[f"crlb_{name}_m2"]
+        mse = cols[f"mse_{name}_m2"]
+        err = np.abs(
+            np.stack([mse - cols[f"mse_low_{name}_m2"], cols[f"mse_high_{name}_m2"] - mse])
+        )
+        label = FORMATION_LABELS.get(name, name)
+        ax.plot(h, bound, color=color, lw=1.2, label=f"{label}: CRLB")
+        ax.errorbar(h, mse, yerr=err, fmt=style.get("marker", "o"), color=color, ms=4,
+                    capsize=2, ls="none", label=f"{label}: MSE of the MLE")  # fmt: skip
+        ratio_ax.errorbar(h, mse / bound, yerr=err / bound, fmt=style.get("marker", "o"),
+                          color=color, ms=4, capsize=2, ls="-", lw=0.8)  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylabel(r"MSE or CRLB (m$^2$)")
+    ax.set_title(f"MLE vs CRLB, {sweep.n_trials} trials per point")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    ratio_ax.axhline(1.0, color="k", ls="--", lw=1.0)
+    ratio_ax.set_yscale("log")
+    ratio_ax.set_ylabel("MSE / CRLB")
+    ratio_ax.set_xlabel("flight altitude H (m)")
+    ratio_ax.grid(True, which="both", alpha=0.3)
+    return fig
+
+
+def plot_estimation_timeseries(
+    result: MissionResult, axes: Sequence[Axes] | None = None
+) -> Figure:
+    """Sensing in the loop over time: the UAVs' estimation error beside the bounds.
+
+    Upper panel: RMS over the runs of the estimation error, with the square roots of the
+    posterior CRLB (the bound for the fused estimate) and of the mean instantaneous CRLB
+    (the bound for one snapshot of ranges). Lower panel: RMS distance from the formation
+    centroid to the true target.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Result of a scenario with ``estimation.enabled``.
+    axes : sequence of two matplotlib.axes.Axes, optional
+        Axes for the two panels; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure holding the axes.
+    """
+    error = result.estimation_error
+    if error is None:
+        raise ValueError("result: has no estimates (simulate a scenario with estimation on)")
+    if axes is None:
+        fig = Figure(figsize=(6.4, 6.0), layout="constrained")
+        axes = fig.subplots(2, 1, sharex=True)
+    if len(axes) != 2:
+        raise ValueError(f"axes: expected two axes, got {len(axes)}")
+    ax, ax_c = axes
+    fig = ax.figure
+    t = result.time
+    ax.plot(t, np.sqrt(np.mean(error**2, axis=0)), color="C0",
+            label=f"RMS estimation error ({result.n_runs} runs)")  # fmt: skip
+    ax.plot(t, np.sqrt(result.pcrb), color="k", ls="--", lw=1.0, label=r"$\sqrt{\mathrm{PCRB}}$")
+    ax.plot(t, np.sqrt(result.crlb.mean(axis=0)), color="0.5", ls=":", lw=1.0,
+            label=r"$\sqrt{\mathrm{CRLB}}$ of one snapshot")  # fmt: skip
+    ax.set_yscale("log")
+    ax.set_ylabel("position error (m)")
+    ax.set_title(f"Sensing in the loop, scenario '{result.scenario.name}'")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    ax_c.plot(t, np.sqrt(np.mean(result.centroid_error**2, axis=0)), color="C2")
+    ax_c.axhline(0.5, color="0.4", ls=":", lw=0.8)
+    ax_c.set_yscale("log")
+    ax_c.set_ylabel("centroid to true target (m, RMS)")
+    ax_c.set_xlabel("time (s)")
+    ax_c.grid(True, which="both", alpha=0.3)
     return fig

@@ -506,6 +506,26 @@ class MissionResult:
             "centroid_error_m": self.centroid_error[b],
         }
 
+    def estimation_columns(self) -> dict[str, np.ndarray]:
+        """Columns of the sensing-in-the-loop figure: statistics over the runs per step.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``rms_estimation_error_m`` (over runs), ``pcrb_m2``,
+            ``mean_crlb_m2`` (instantaneous CRLB, mean over runs), ``rms_centroid_error_m``.
+        """
+        error = self.estimation_error
+        if error is None:
+            raise ValueError("result: has no estimates (simulate a scenario with estimation on)")
+        return {
+            "time_s": self.time,
+            "rms_estimation_error_m": np.sqrt(np.mean(error**2, axis=0)),
+            "pcrb_m2": self.pcrb,
+            "mean_crlb_m2": self.crlb.mean(axis=0),
+            "rms_centroid_error_m": np.sqrt(np.mean(self.centroid_error**2, axis=0)),
+        }
+
     def summary(self) -> dict[str, Any]:
         """Aggregate figures over the runs, JSON-ready.
 
