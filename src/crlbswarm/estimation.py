@@ -135,9 +135,10 @@ def negative_log_likelihood(
     a = _check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     diff = target_offsets(q, s)
-    d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
-    r = d_hat - np.sqrt(d2)
-    return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
+    with np.errstate(over="ignore"):  # absurd magnitudes give inf, not a warning
+        d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
+        r = d_hat - np.sqrt(d2)
+        return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
 
 
 def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: object) -> np.ndarray:
@@ -169,6 +170,11 @@ def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: objec
             f"uav_xy: the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
         )
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd ranges: centroid fallback
+        return _linearised(q, d_hat, h)
+
+
+def _linearised(q: np.ndarray, d_hat: np.ndarray, h: np.ndarray) -> np.ndarray:
     center = q.mean(axis=-2)
     qc = q - center[..., None, :]
     rows = np.concatenate([-2.0 * qc, np.ones((*qc.shape[:-1], 1))], axis=-1)  # (..., M, 3)
@@ -182,7 +188,8 @@ def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: objec
     scale = np.einsum("...ii->...", normal) ** 3
     ok = np.abs(det) > 1e-12 * scale
     safe = np.where(ok[..., None, None], normal, np.eye(3))
-    sol = np.linalg.solve(safe, moment[..., None])[..., 0]
+    sol = np.linalg.solve(safe, np.where(np.isfinite(moment), moment, 0.0)[..., None])[..., 0]
+    ok &= np.all(np.isfinite(sol), axis=-1) & np.all(np.isfinite(moment), axis=-1)
     est = np.where(ok[..., None], sol[..., :2], 0.0)
     return np.broadcast_to(center, est.shape) + est
 
@@ -196,7 +203,8 @@ class TargetEstimate:
     position : ndarray, shape (..., 2)
         Estimated target position, m. Never NaN: a failed trial keeps its last iterate.
     converged : ndarray of bool, shape (...)
-        Whether the trial met the tolerance within ``max_iter`` iterations.
+        Whether the trial met the tolerance within ``max_iter`` iterations at a minimum of
+        the negative log-likelihood (positive definite Hessian).
     iterations : ndarray of int, shape (...)
         Iterations used.
     nll : ndarray, shape (...)
@@ -260,8 +268,9 @@ def _nll_terms(s, q, d_hat, h2, a, w):
 def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
     """Levenberg-Marquardt-damped Newton minimisation of ``terms`` for every row of ``s``.
 
-    Returns ``(s, cost, converged, iterations)``; ``s`` is updated only by steps that lower
-    the cost, so it stays finite.
+    Returns ``(s, cost, converged, iterations, positive_definite)``; ``s`` is updated only by
+    steps that lower the cost, so it stays finite. ``positive_definite`` tells whether the
+    curvature at the final ``s`` is positive definite (a minimum, not a maximum or saddle).
     """
     n = s.shape[0]
     per = np.ndim(a) > 0
@@ -293,9 +302,19 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         trial = s[idx] + step
         t_cost, t_grad, t_xx, t_yy, t_xy, t_tr = at(trial, idx)
         # Accept a step that lowers the cost; a positive definite damped matrix (det > 0,
-        # diagonal > 0) makes the step a descent direction.
+        # diagonal > 0) makes the step a descent direction. Where the change of the cost is
+        # at the level of its rounding error, a smaller gradient decides instead, so Newton's
+        # quadratic convergence is not stopped by rounding near the minimum.
         descent = (det > 0) & (axx > 0)
-        better = descent & np.isfinite(t_cost) & (t_cost <= cost[idx])
+        # (The cost sums dozens of rounded terms: allow a few thousand ulps.)
+        rounding = 1e-12 * (np.abs(cost[idx]) + 1.0)
+        flat = np.abs(t_cost - cost[idx]) <= rounding
+        smaller_grad = np.hypot(*t_grad.T) < np.hypot(*grad[idx].T)
+        better = (
+            descent
+            & np.isfinite(t_cost)
+            & ((t_cost < cost[idx] - rounding) | (flat & smaller_grad))
+        )
         near_newton = mu[idx] <= 1e-2
         acc = idx[better]
         s[acc] = trial[better]
@@ -306,13 +325,15 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         mu[rej] = mu[rej] * 10.0
         step_len = np.hypot(step[:, 0], step[:, 1])
         scale = 1.0 + np.hypot(*(s[idx] - q[idx].mean(axis=1)).T)
-        # Converged when the (nearly undamped) Newton step is negligible, accepted or not: at
-        # that size the change of the cost is below its rounding error.
-        done = (step_len <= tolerance * scale) & (better | near_newton)
+        # Converged when the nearly undamped Newton step is negligible, accepted or not (at
+        # that size the change of the cost is below its rounding error). A heavily damped
+        # step is short whatever the distance to the minimum, so it never counts.
+        done = (step_len <= tolerance * scale) & near_newton
         converged[idx[done]] = True
         active[idx[done]] = False
         active[idx[mu[idx] > 1e12]] = False  # hopeless damping: give up, report failed
-    return s, cost, converged, iterations
+    positive_definite = (hxx > 0) & (hxx * hyy - hxy * hxy > 0)
+    return s, cost, converged, iterations, positive_definite
 
 
 def estimate_target(
@@ -372,6 +393,13 @@ def estimate_target(
     if not tolerance > 0:
         raise ValueError(f"tol: must be > 0, got {tol!r}")
     s0 = linearised_estimate(q, d_hat, h) if init is None else _v.point(init, "init")
+    # Absurd inputs (ranges whose squares overflow) make the costs infinite: every step is
+    # then rejected and the trial is reported as failed, without a warning.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
+
+
+def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
     batch = np.broadcast_shapes(q.shape[:-2], d_hat.shape[:-1], h.shape, s0.shape[:-1])
     m_uavs = q.shape[-2]
     q = np.broadcast_to(q, (*batch, m_uavs, 2)).reshape(-1, m_uavs, 2)
@@ -384,8 +412,12 @@ def estimate_target(
     w = a_b / d_floor**4
     # Stage 1 only has to land in the basin of the MLE: a loose tolerance saves iterations.
     loose = max(tolerance, 1e-6)
-    s, _, _, it1 = _damped_newton(_wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
-    s, nll, converged, it2 = _damped_newton(_nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance)
+    s, _, _, it1, _ = _damped_newton(_wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
+    s, nll, converged, it2, minimum = _damped_newton(
+        _nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance
+    )
+    # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
+    converged &= minimum
     return TargetEstimate(
         position=s.reshape(*batch, 2),
         converged=converged.reshape(batch),

@@ -168,7 +168,7 @@ class EstimatorSweep:
         For each formation (keys of :data:`crlbswarm.FORMATION_LABELS`), one result per
         altitude. ``random_disc`` is one seeded draw per altitude (its own CRLB), not a
         mean over draws. ``line`` starts every trial from a coarse prior (true target plus
-        N(0, (r*/4)^2) per axis): a line of UAVs cannot tell the target from its mirror
+        N(0, (r*/8)^2) per axis): a line of UAVs cannot tell the target from its mirror
         image, so without a prior the MLE picks either at random. All other formations start
         from the closed-form linearised estimate.
     """
@@ -247,7 +247,7 @@ def estimator_vs_altitude(
     for i, (name, shapes) in enumerate(formations.items()):
         for k in range(h.size):
             rng = np.random.default_rng(streams[i * h.size + k])
-            prior = r_star[k] / 4.0 if name == "line" else None
+            prior = r_star[k] / 8.0 if name == "line" else None
             results[name].append(
                 monte_carlo_mse(shapes[k], origin, h[k], radar, n, rng, prior_std=prior)
             )

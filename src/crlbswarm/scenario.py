@@ -74,9 +74,9 @@ class ScenarioError(ValueError):
     """An invalid scenario; the message is one line naming the field and the reason."""
 
 
-Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
 class _Model(BaseModel):

@@ -441,12 +441,14 @@ class MissionResult:
         error = self.estimation_error
         if error is None:
             return {}
-        tail = self.steady_state
+        # A contiguous suffix, so each run's reduction does not depend on the batch.
+        k0 = int(np.argmax(self.steady_state))
+        tail_error = np.ascontiguousarray(error[:, k0:])
         return {
             "final_estimation_error_m": error[:, -1],
-            "steady_rms_estimation_error_m": np.sqrt(np.mean(error[:, tail] ** 2, axis=1)),
+            "steady_rms_estimation_error_m": np.sqrt(np.mean(tail_error**2, axis=1)),
             "steady_max_error_over_sqrt_crlb": np.max(
-                error[:, tail] / np.sqrt(self.crlb[:, tail]), axis=1
+                tail_error / np.sqrt(self.crlb[:, k0:]), axis=1
             ),
         }
 

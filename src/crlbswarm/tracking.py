@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .fisher import fisher_information
 from .radar import Radar
@@ -78,7 +79,11 @@ def motion_matrices(
     if model == "constant_velocity":
         f[0, 2] = f[1, 3] = dt
     elif model == "turning":
-        w = turn_rate
+        w = float(turn_rate)
+        if not (math.isfinite(w) and w != 0.0):
+            raise ValueError(
+                f"turn_rate: the turning model needs a finite non-zero rate, got {turn_rate!r}"
+            )
         s, c = math.sin(w * dt), math.cos(w * dt)
         f[:2, 2:] = [[s / w, -(1.0 - c) / w], [(1.0 - c) / w, s / w]]
         f[2:, 2:] = [[c, -s], [s, c]]
@@ -134,9 +139,21 @@ def target_trajectories(
         accel = np.stack([r.standard_normal((n_steps, 2)) for r in rngs]) * acceleration_noise
     else:
         accel = np.zeros((len(rngs), n_steps, 2))
-    for k in range(n_steps):
-        out[:, k + 1] = out[:, k] @ f.T + accel[:, k] @ g.T
+    # One run at a time with scalar arithmetic in a fixed order, so a run's trajectory does
+    # not depend on the batch it is simulated in (a batched matrix product would).
+    _propagate(f, g, accel, out)
     return out
+
+
+@njit(cache=True)
+def _propagate(f, g, accel, out):
+    for b in range(out.shape[0]):
+        for k in range(accel.shape[1]):
+            for r in range(4):
+                acc = 0.0
+                for c in range(4):
+                    acc += f[r, c] * out[b, k, c]
+                out[b, k + 1, r] = acc + g[r, 0] * accel[b, k, 0] + g[r, 1] * accel[b, k, 1]
 
 
 def mean_range_information(
