@@ -170,7 +170,9 @@ def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: objec
             f"uav_xy: the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
         )
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
-    with np.errstate(over="ignore", invalid="ignore"):  # absurd ranges: centroid fallback
+    # Singular systems (collinear UAVs) and absurd ranges fall back to the centroid; the
+    # warnings numpy would raise on the way are expected, so they are silenced.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         return _linearised(q, d_hat, h)
 
 
