@@ -317,7 +317,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     # Compute everything first: a failure leaves the output folder untouched.
     try:
         sweep = crlb_vs_altitude(n_uavs=args.uavs)
-        _v_seed(args.seed)
+        _check_seed(args.seed)
     except ValueError as exc:
         raise _as_option_error(exc) from exc
     curve = optimal_elevation_curve()
@@ -397,7 +397,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     return 0
 
 
-def _v_seed(seed: int) -> None:
+def _check_seed(seed: int) -> None:
     if seed < 0:
         raise UsageError(f"--seed: must be >= 0, got {seed}")
 
@@ -426,7 +426,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     # Validate everything before running anything; create the folder only after the run.
     scenario = load_scenario(args.scenario)
-    _v_seed(args.seed)
+    _check_seed(args.seed)
     if args.seed > MAX_SEED:
         raise UsageError(f"--seed: must be below 2**63, got {args.seed}")
     if args.runs < 1:
