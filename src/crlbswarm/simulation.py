@@ -80,16 +80,63 @@ class SimulationDivergedError(RuntimeError):
 # ---------------------------------------------------------------------------------------
 # Kernel
 # ---------------------------------------------------------------------------------------
+#: Up to this many UAVs the smallest separation is found by checking every pair.
+SEPARATION_BRUTE_FORCE_MAX = 64
+
+
 @njit(cache=True)
 def _min_separation(q):
-    best = math.inf
+    """Smallest distance between two UAVs: all pairs for small swarms, a uniform grid (cell
+    list, O(M) for a spread-out swarm) for large ones; exact in both cases."""
     n = q.shape[0]
-    for m in range(n):
-        for p in range(m + 1, n):
-            dx = q[m, 0] - q[p, 0]
-            dy = q[m, 1] - q[p, 1]
-            best = min(best, dx * dx + dy * dy)
-    return math.sqrt(best)
+    if n < 2:
+        return math.inf
+    if n <= SEPARATION_BRUTE_FORCE_MAX:
+        best = math.inf
+        for m in range(n):
+            for p in range(m + 1, n):
+                dx = q[m, 0] - q[p, 0]
+                dy = q[m, 1] - q[p, 1]
+                best = min(best, dx * dx + dy * dy)
+        return math.sqrt(best)
+    x0, x1 = q[:, 0].min(), q[:, 0].max()
+    y0, y1 = q[:, 1].min(), q[:, 1].max()
+    # Cells of about one UAV each; a pair closer than the cell size is always found in the
+    # same or a neighbouring cell. If no pair is that close, grow the cells and try again.
+    cell = max(math.sqrt(max((x1 - x0) * (y1 - y0), 1e-12) / n), 1e-9)
+    while True:
+        nx = min(int((x1 - x0) / cell) + 1, 4 * n)
+        ny = min(int((y1 - y0) / cell) + 1, 4 * n)
+        cell = max(cell, (x1 - x0) / nx * (1 + 1e-12), (y1 - y0) / ny * (1 + 1e-12))
+        key = np.empty(n, dtype=np.int64)
+        for m in range(n):
+            cx = min(int((q[m, 0] - x0) / cell), nx - 1)
+            cy = min(int((q[m, 1] - y0) / cell), ny - 1)
+            key[m] = cx * ny + cy
+        order = np.argsort(key, kind="mergesort")
+        sorted_keys = key[order]
+        best = cell * cell
+        found = False
+        for i in range(n):
+            m = order[i]
+            cx, cy = sorted_keys[i] // ny, sorted_keys[i] % ny
+            for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
+                for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                    k = ax * ny + ay
+                    j = np.searchsorted(sorted_keys, k)
+                    while j < n and sorted_keys[j] == k:
+                        p = order[j]
+                        if p > m:
+                            dx = q[m, 0] - q[p, 0]
+                            dy = q[m, 1] - q[p, 1]
+                            d2 = dx * dx + dy * dy
+                            if d2 < best:
+                                best = d2
+                                found = True
+                        j += 1
+        if found:
+            return math.sqrt(best)
+        cell *= 2.0
 
 
 class Gains(NamedTuple):
