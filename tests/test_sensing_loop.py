@@ -302,30 +302,36 @@ def test_sensing_starts_where_the_paper_starts(sensing):
         np.testing.assert_array_equal(res.positions[b, 0], start_positions(paper, SEEDS[b]))
 
 
-def test_sensing_with_a_perfect_prior_flies_the_paper_mission():
-    """Prior on the truth with a 1 um spread: the estimate stays on the truth to < 1e-7 m and
-    the formation flies the paper's trajectories to < 1e-7 m (same control law, same
-    start and disturbance streams)."""
+def test_sensing_with_a_sharp_prior_flies_the_paper_mission():
+    """Prior on the truth with a 1 mm spread (the smallest allowed): the estimate stays within
+    a millimetre of the truth and the formation flies the paper's trajectories to within a
+    centimetre (same control law, same start and disturbance streams)."""
     seeds = [2, 5]
     paper = simulate(load_scenario("paper"), seeds=seeds)
-    d = scenario_dict("sensing", estimation={"prior_offset": [0.0, 0.0], "prior_std": 1e-6})
+    d = scenario_dict("sensing", estimation={"prior_offset": [0.0, 0.0], "prior_std": 1e-3})
     res = simulate(Scenario.from_dict(d), seeds=seeds)
-    assert res.estimation_error.max() < 1e-7
-    assert np.abs(res.positions - paper.positions).max() < 1e-7
+    assert res.estimation_error.max() < 1e-3
+    assert np.abs(res.positions - paper.positions).max() < 1e-2
 
 
 def test_formation_is_centred_on_the_estimate_not_the_truth():
-    """A prior 20 m off held with a 1 nm spread: the ranges cannot move the estimate, and the
-    formation settles over the estimate, 20 m from the true target."""
-    d = scenario_dict("sensing", estimation={"prior_offset": [20.0, 0.0], "prior_std": 1e-9})
+    """A prior 20 m off (one prior_std) and ranges made worthless by a 1e-12 W radar (range
+    noise of kilometres): the estimate stays near the prior mean, and the formation settles
+    over the estimate, about 20 m from the true target."""
+    d = scenario_dict(
+        "sensing",
+        estimation={"prior_offset": [20.0, 0.0], "prior_std": 20.0},
+        radar={"tx_power": 1e-12},
+    )
     sc = Scenario.from_dict(d)
     res = simulate(sc, seeds=[0, 1])
     believed = np.asarray(sc.target) + np.array([20.0, 0.0])
-    assert np.abs(res.estimate - believed).max() < 1e-6
-    offset = res.positions[:, -1].mean(axis=-2) - believed
-    assert np.all(np.hypot(offset[:, 0], offset[:, 1]) < 0.5)
-    assert np.all(np.abs(res.centroid_error[:, -1] - 20.0) < 0.5)
-    assert np.all(res.crlb[:, -1] > 1.5 * res.bound)  # badly placed for the true target
+    assert np.abs(res.estimate[:, -1] - believed).max() < 3.0
+    # The estimate wanders slowly (each update moves it a little at random), so the
+    # formation trails it by a few metres; it is far nearer the estimate than the truth.
+    offset = res.positions[:, -1].mean(axis=-2) - res.estimate[:, -1]
+    assert np.all(np.hypot(offset[:, 0], offset[:, 1]) < 3.0)
+    assert np.all(np.abs(res.centroid_error[:, -1] - 20.0) < 1.0)
 
 
 def test_estimation_off_path_is_the_paper_mission():
@@ -485,17 +491,39 @@ def test_measure_every_5_pcrb_updates_on_those_steps_only(every5, snr):
 @pytest.mark.parametrize(
     ("base", "section", "changes", "field"),
     [
-        ("sensing", "target_motion", {"velocity": [1.0, 0.0]}, "target_motion"),
-        ("sensing", "target_motion", {"turn_rate": 0.1}, "target_motion"),
-        ("sensing", "target_motion", {"acceleration_noise": 0.1}, "target_motion"),
-        ("moving_target", "target_motion", {"model": "turning"}, "target_motion"),
+        ("sensing", "target_motion", {"velocity": [1.0, 0.0]}, "target_motion.velocity"),
+        ("sensing", "target_motion", {"turn_rate": 0.1}, "target_motion.turn_rate"),
+        (
+            "sensing",
+            "target_motion",
+            {"acceleration_noise": 0.1},
+            "target_motion.acceleration_noise",
+        ),
+        ("moving_target", "target_motion", {"model": "turning"}, "target_motion.turn_rate"),
         (
             "moving_target",
             "target_motion",
             {"model": "turning", "turn_rate": 0.0},
-            "target_motion",
+            "target_motion.turn_rate",
         ),
-        ("moving_target", "target_motion", {"turn_rate": 0.1}, "target_motion"),
+        ("moving_target", "target_motion", {"turn_rate": 0.1}, "target_motion.turn_rate"),
+        # Settings that cannot work: the scenario is refused before anything runs.
+        ("moving_target", "target_motion", {"velocity": [6.0, 0.0]}, "target_motion.velocity"),
+        (
+            "moving_target",
+            "target_motion",
+            {"model": "turning", "turn_rate": 20.0},
+            "target_motion.turn_rate",
+        ),
+        ("moving_target", "estimation", {"measure_every": 5000}, "estimation.measure_every"),
+        ("moving_target", "estimation", {"prior_offset": [200.0, 0.0]}, "estimation.prior_offset"),
+        ("moving_target", "estimation", {"prior_std": 1e-200}, "estimation.prior_std"),
+        (
+            "moving_target",
+            "target_motion",
+            {"acceleration_noise": 1e200},
+            "target_motion.acceleration_noise",
+        ),
         ("moving_target", "target_motion", {"model": "ballistic"}, "target_motion.model"),
         (
             "moving_target",

@@ -69,6 +69,9 @@ __all__ = [
 #: Largest number of time steps of a mission.
 MAX_STEPS = 10_000_000
 
+#: Largest distance of the prior mean from the truth, in prior standard deviations.
+MAX_PRIOR_SIGMAS = 5.0
+
 
 class ScenarioError(ValueError):
     """An invalid scenario; the message is one line naming the field and the reason."""
@@ -283,13 +286,26 @@ class EstimationConfig(_Model):
     prior_offset: Pair = Field(
         [20.0, 0.0], description="initial estimate minus the true target position, m"
     )
-    prior_std: PositiveFloat = Field(20.0, description="prior standard deviation per axis, m")
-    velocity_prior_std: PositiveFloat = Field(
+    prior_std: Annotated[float, Field(ge=1e-3, le=1e6)] = Field(
+        20.0, description="prior standard deviation per axis, m (1e-3 to 1e6)"
+    )
+    velocity_prior_std: Annotated[float, Field(ge=1e-3, le=1e4)] = Field(
         5.0, description="prior standard deviation of each velocity component, m/s (moving)"
     )
     measure_every: Annotated[int, Field(ge=1)] = Field(
         1, description="ranges are measured and fused every this many steps"
     )
+
+    @model_validator(mode="after")
+    def _prior_consistent(self) -> EstimationConfig:
+        offset = math.hypot(*self.prior_offset)
+        if offset > MAX_PRIOR_SIGMAS * self.prior_std:
+            raise _FieldError(
+                "estimation.prior_offset",
+                f"is {offset:g} m, more than {MAX_PRIOR_SIGMAS:g} prior_std = "
+                f"{self.prior_std:g} m: the filter's prior would contradict its own covariance",
+            )
+        return self
 
 
 class TargetMotionConfig(_Model):
@@ -300,20 +316,20 @@ class TargetMotionConfig(_Model):
     )
     velocity: Pair = Field([0.0, 0.0], description="initial velocity, m/s")
     turn_rate: FiniteFloat = Field(0.0, description="turning: rate of turn, rad/s")
-    acceleration_noise: Annotated[float, Field(ge=0, allow_inf_nan=False)] = Field(
-        0.0, description="std of the white acceleration noise per axis, m/s^2"
+    acceleration_noise: Annotated[float, Field(ge=0, le=100)] = Field(
+        0.0, description="std of the white acceleration noise per axis, m/s^2 (at most 100)"
     )
 
     @model_validator(mode="after")
     def _options_fit_model(self) -> TargetMotionConfig:
-        if self.model == "static" and (
-            any(self.velocity) or self.turn_rate or self.acceleration_noise
-        ):
-            raise ValueError("a static target takes no velocity, turn_rate or acceleration_noise")
+        if self.model == "static":
+            for name in ("velocity", "turn_rate", "acceleration_noise"):
+                if np.any(getattr(self, name)):
+                    raise _FieldError(f"target_motion.{name}", "does not apply to a static target")
         if self.model == "constant_velocity" and self.turn_rate:
-            raise ValueError("turn_rate applies to model 'turning' only")
+            raise _FieldError("target_motion.turn_rate", "applies to model 'turning' only")
         if self.model == "turning" and not self.turn_rate:
-            raise ValueError("model 'turning' needs a non-zero turn_rate")
+            raise _FieldError("target_motion.turn_rate", "model 'turning' needs a non-zero rate")
         return self
 
     @property
@@ -392,6 +408,7 @@ class Scenario(_Model):
         except ValueError as exc:
             raise _FieldError(*_split_field(str(exc), "graph")) from exc
         self._check_gains(adjacency)
+        self._check_estimation(obstacles)
         clearance = obstacle_clearance(self.formation, obstacles) if obstacles.count else None
         if clearance is not None and np.any(clearance <= self.control.safety_radius):
             m = int(np.argmin(clearance))
@@ -402,6 +419,43 @@ class Scenario(_Model):
                 "the formation could never settle there",
             )
         return self
+
+    def _check_estimation(self, obstacles: Obstacles) -> None:
+        """Sensing-in-the-loop and target-motion settings that cannot work."""
+        est, motion, step = self.estimation, self.target_motion, self.time.step
+        if est.enabled and est.measure_every > self.time.steps:
+            raise _FieldError(
+                "estimation.measure_every",
+                f"{est.measure_every} exceeds the {self.time.steps} steps of the mission",
+            )
+        if not motion.moving:
+            return
+        speed = math.hypot(*motion.velocity)
+        if speed >= self.control.cruise_speed:
+            raise _FieldError(
+                "target_motion.velocity",
+                f"the target's speed {speed:g} m/s must be below control.cruise_speed = "
+                f"{self.control.cruise_speed:g} m/s, or the formation cannot follow it",
+            )
+        if motion.model == "turning" and abs(motion.turn_rate) * step >= 0.5 * math.pi:
+            raise _FieldError(
+                "target_motion.turn_rate",
+                f"turns {abs(motion.turn_rate) * step:g} rad per step; must be below pi/2",
+            )
+        if obstacles.count:
+            from .tracking import target_trajectories
+
+            path = target_trajectories(
+                np.asarray(self.target, dtype=float), np.asarray(motion.velocity, dtype=float),
+                motion.model, step, self.time.steps, [np.random.default_rng(0)],
+                motion.turn_rate, 0.0,
+            )[0, :, :2]  # fmt: skip
+            inside = np.flatnonzero(obstacle_clearance(path, obstacles) <= 0)
+            if inside.size:
+                raise _FieldError(
+                    "target_motion",
+                    f"the target's nominal path enters an obstacle at t = {inside[0] * step:g} s",
+                )
 
     def _check_gains(self, adjacency: Adjacency) -> None:
         """Stability bounds of the linear laws and the step-size limits of the nonlinear ones."""
@@ -592,7 +646,11 @@ def _describe(exc: ValidationError) -> str:
             msg = "unknown field"
         elif "input" in err and not isinstance(err["input"], dict | list):
             msg = f"{msg} (got {err['input']!r})"
-        parts.append(f"{'.'.join(loc)}: {msg}" if loc else msg)
+        where = ".".join(loc)
+        # A section's own validator may already name the full dotted field in its message.
+        if where and not msg.startswith(f"{where}."):
+            msg = f"{where}: {msg}"
+        parts.append(msg)
     return "; ".join(parts)
 
 
