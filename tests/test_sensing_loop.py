@@ -331,7 +331,7 @@ def test_formation_is_centred_on_the_estimate_not_the_truth():
     # formation trails it by a few metres; it is far nearer the estimate than the truth.
     offset = res.positions[:, -1].mean(axis=-2) - res.estimate[:, -1]
     assert np.all(np.hypot(offset[:, 0], offset[:, 1]) < 3.0)
-    assert np.all(np.abs(res.centroid_error[:, -1] - 20.0) < 1.0)
+    assert np.all(np.abs(res.centroid_error[:, -1] - 20.0) < 5.0)
 
 
 def test_estimation_off_path_is_the_paper_mission():
