@@ -27,9 +27,9 @@ from hypothesis import strategies as st
 
 from crlbswarm import Radar
 from crlbswarm.tracking import (
-    mean_range_information,
     motion_matrices,
     posterior_crlb,
+    summed_range_information,
     target_trajectories,
 )
 
@@ -423,15 +423,15 @@ def test_pcrb_does_not_modify_its_inputs():
 
 
 # =============================================================================================
-# mean_range_information
+# summed_range_information
 # =============================================================================================
 @pytest.mark.parametrize("seed", SEEDS)
-def test_mean_range_information_is_the_sum_of_the_reference_fims(seed, ref):
+def test_summed_range_information_is_the_sum_of_the_reference_fims(seed, ref):
     rng = np.random.default_rng(seed)
     b, k1, m, altitude = 3, 4, 5, 20.0
     targets = rng.uniform(-50.0, 50.0, (b, k1, 2))
     uavs = targets[:, :, None, :] + rng.uniform(-40.0, 40.0, (b, k1, m, 2))
-    got = mean_range_information(uavs, targets, altitude, Radar())
+    got = summed_range_information(uavs, targets, altitude, Radar())
     assert got.shape == (k1, 2, 2)
     prm = ref.radar_params()
     expected = np.array(
@@ -441,3 +441,32 @@ def test_mean_range_information_is_the_sum_of_the_reference_fims(seed, ref):
         ]
     )
     np.testing.assert_allclose(got, expected, rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: motion_matrices("constant_velocity", -1.0), "dt"),
+        (lambda: motion_matrices("constant_velocity", float("nan")), "dt"),
+        (lambda: motion_matrices("constant_velocity", 0.1, acceleration_noise=-1.0),
+         "acceleration_noise"),
+        (lambda: posterior_crlb(np.zeros((3, 2, 2)), np.eye(4), np.zeros((4, 4)), np.eye(4), 3),
+         "n_state"),
+        (lambda: posterior_crlb(np.zeros((3, 2, 2)), np.eye(4), np.zeros((4, 4)), np.eye(4), 2,
+                                measure_every=0), "measure_every"),
+        (lambda: posterior_crlb(np.zeros((3, 2)), np.eye(4), np.zeros((4, 4)), np.eye(4), 2),
+         "mean_fim"),
+        (lambda: posterior_crlb(np.zeros((3, 2, 2)), np.eye(4), np.zeros((4, 4)),
+                                np.zeros((4, 4)), 2), "p0"),
+        (lambda: target_trajectories(np.zeros(2), np.zeros(2), "constant_velocity", 0.1, -1,
+                                     [np.random.default_rng(0)]), "n_steps"),
+        (lambda: target_trajectories(np.zeros(2), np.zeros(2), "static", 0.1, 5,
+                                     [np.random.default_rng(0)], acceleration_noise=1.0),
+         "acceleration_noise"),
+        (lambda: target_trajectories(np.zeros(2), np.zeros(2), "constant_velocity", 0.1, 5,
+                                     [None], acceleration_noise=1.0), "rngs"),
+    ],
+)  # fmt: skip
+def test_bad_arguments_name_themselves(call, name):
+    with pytest.raises(ValueError, match=rf"^{name}"):
+        call()

@@ -72,7 +72,12 @@ from .montecarlo import (
 from .radar import SPEED_OF_LIGHT, Radar, db_to_linear, dbm_to_watts
 from .scenario import BUILTIN_SCENARIOS, Scenario, ScenarioError, load_scenario
 from .simulation import MissionResult, SimulationDivergedError, simulate, start_positions
-from .tracking import mean_range_information, motion_matrices, posterior_crlb, target_trajectories
+from .tracking import (
+    motion_matrices,
+    posterior_crlb,
+    summed_range_information,
+    target_trajectories,
+)
 
 __version__ = "0.1.0"
 
@@ -123,7 +128,6 @@ __all__ = [
     "line_formation",
     "linearised_estimate",
     "load_scenario",
-    "mean_range_information",
     "measure_ranges",
     "monte_carlo_mse",
     "motion_matrices",
@@ -141,5 +145,6 @@ __all__ = [
     "simulate",
     "slant_ranges",
     "start_positions",
+    "summed_range_information",
     "target_trajectories",
 ]

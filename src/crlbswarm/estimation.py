@@ -25,8 +25,10 @@ Levenberg-Marquardt-damped Newton method: the step solves
 lowers :math:`\ell` (otherwise :math:`\mu` grows tenfold, which turns the step into a short
 gradient step; an accepted step divides :math:`\mu` by ten). The damping is scaled by the
 FIM of eq. (8) so that it is dimensionally right at every altitude. Near the optimum the
-steps are Newton steps, so convergence is quadratic; the converged point is a stationary
-point of the exact likelihood, the MLE.
+steps are Newton steps, so convergence is quadratic; the converged point is a local minimum
+of the exact negative log-likelihood (checked: positive definite Hessian), the MLE within
+its basin. At high SNR the basin of the start is that of the global maximum of the
+likelihood; at low SNR a few trials can end in another local minimum.
 """
 
 from __future__ import annotations
@@ -402,7 +404,9 @@ def estimate_target(
 
 
 def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
-    batch = np.broadcast_shapes(q.shape[:-2], d_hat.shape[:-1], h.shape, s0.shape[:-1])
+    batch = _v.broadcast("measured_ranges", q.shape[:-2], d_hat.shape[:-1])
+    batch = _v.broadcast("altitude", batch, h.shape)
+    batch = _v.broadcast("init", batch, s0.shape[:-1])
     m_uavs = q.shape[-2]
     q = np.broadcast_to(q, (*batch, m_uavs, 2)).reshape(-1, m_uavs, 2)
     d_hat = np.broadcast_to(d_hat, (*batch, m_uavs)).reshape(-1, m_uavs)

@@ -83,9 +83,9 @@ def _summarise(errors: np.ndarray, failed: np.ndarray, bound: float) -> MonteCar
     n = errors.shape[0]
     sq = np.sum(errors * errors, axis=-1)
     mse = float(sq.mean())
-    half = Z95 * float(sq.std(ddof=1)) / np.sqrt(n) if n > 1 else np.inf
+    half = Z95 * float(sq.std(ddof=1)) / np.sqrt(n)  # n >= 2 (checked by the callers)
     bias = errors.mean(axis=0)
-    bias_half = Z95 * errors.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.full(2, np.inf)
+    bias_half = Z95 * errors.std(axis=0, ddof=1) / np.sqrt(n)
     return MonteCarloResult(
         n_trials=n,
         n_failed=int(failed.sum()),
@@ -167,7 +167,8 @@ class EstimatorSweep:
     results : dict of str to list of MonteCarloResult
         For each formation (keys of :data:`crlbswarm.FORMATION_LABELS`), one result per
         altitude. ``random_disc`` is one seeded draw per altitude (its own CRLB), not a
-        mean over draws. ``line`` starts every trial from a coarse prior (true target plus
+        mean over draws (the same unit-disc draw, scaled by :math:`2r^*`, at every
+        altitude). ``line`` starts every trial from a coarse prior (true target plus
         N(0, (r*/8)^2) per axis): a line of UAVs cannot tell the target from its mirror
         image, so without a prior the MLE picks either at random. All other formations start
         from the closed-form linearised estimate.
@@ -240,7 +241,7 @@ def estimator_vs_altitude(
         altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed
     )
     formations["random_disc"] = formations["random_disc"][:, 0]
-    streams = np.random.SeedSequence(seed).spawn(len(formations) * h.size + 1)[1:]
+    streams = np.random.SeedSequence(seed).spawn(len(formations) * h.size)
     results: dict[str, list[MonteCarloResult]] = {name: [] for name in FORMATION_LABELS}
     origin = np.zeros(2)
     r_star = optimal_radius(h, radar)

@@ -402,6 +402,8 @@ def plot_estimator_vs_altitude(
             np.stack([mse - cols[f"mse_low_{name}_m2"], cols[f"mse_high_{name}_m2"] - mse])
         )
         label = FORMATION_LABELS.get(name, name)
+        if name == "random_disc":
+            label = "random in disc of radius 2r* (one draw)"
         ax.plot(h, bound, color=color, lw=1.2, label=f"{label}: CRLB")
         ax.errorbar(h, mse, yerr=err, fmt=style.get("marker", "o"), color=color, ms=4,
                     capsize=2, ls="none", label=f"{label}: MSE of the MLE")  # fmt: skip

@@ -6,20 +6,28 @@ each using only its neighbours' information, except two formation-wide quantitie
 scaling factor :math:`\eta_k`, global in the paper too, and the formation centroid that
 the leader uses to steer the formation off obstacles, a crlbswarm addition):
 
+0. with sensing in the loop (``estimation.enabled``), every ``measure_every`` steps the UAVs
+   measure their ranges to the (possibly moving) target and an iterated EKF fuses them; the
+   formation's goal is then the estimate instead of the true target (not in the paper);
 1. the leader computes its reference velocity :math:`\mathbf v^*_k` toward its slot of
-   :math:`F^*` over the target (:func:`crlbswarm.leader_guidance`);
+   :math:`F^*` over the target (:func:`crlbswarm.leader_guidance`), with the target's
+   (estimated) velocity as feedforward;
 2. each UAV computes its formation input and obstacle repulsion, eqs. (18)-(19);
 3. every UAV moves by the motion model of eq. (3),
    :math:`\mathbf q_{m,k+1} = \mathbf q_{m,k} + \mathbf u_{m,k} + \mathbf v_{m,k}\Delta T +
    \mathbf n_{m,k}`, with :math:`\mathbf g_{m,k} = \mathbf v_{m,k}` from the consensus (the
    leader's is :math:`\mathbf v^*_k`);
 4. the followers update their velocity estimates by the corrected consensus, eq. (14);
-5. :math:`\eta` steps toward :func:`crlbswarm.eta_target` at a limited rate.
+5. :math:`\eta` steps toward :func:`crlbswarm.eta_target` at a limited rate;
+6. the filter predicts the target state with its motion model
+   (:func:`crlbswarm.tracking.motion_matrices`).
 
 The compiled kernel loops over runs (in parallel threads) and steps; each run uses only its
 own random streams, so run :math:`b` of a batch is bit-identical to the single run with the
-same seed. Random numbers: for seed :math:`s`, ``SeedSequence(s).spawn(2)`` gives one stream
-for the start positions and one for the motion disturbance.
+same seed. Random numbers: for seed :math:`s`, ``SeedSequence(s).spawn(4)`` gives the streams
+of the start positions, the motion disturbance, the range noise and the target's
+acceleration noise, in that order (spawning more children leaves the first ones unchanged,
+so the streams of a scenario without estimation are the same as before it existed).
 """
 
 from __future__ import annotations
@@ -46,7 +54,12 @@ from .control import (
 from .design import crlb_bound
 from .fisher import crlb
 from .scenario import Scenario
-from .tracking import mean_range_information, motion_matrices, posterior_crlb, target_trajectories
+from .tracking import (
+    motion_matrices,
+    posterior_crlb,
+    summed_range_information,
+    target_trajectories,
+)
 
 __all__ = ["MissionResult", "SimulationDivergedError", "simulate", "start_positions"]
 
@@ -209,7 +222,8 @@ def _inverse_small(a, n):
 @njit(cache=True)
 def _iekf_update(x, p_cov, q, ranges, g, n_iter):
     """Iterated EKF update with all M ranges, in information form (Gauss-Newton on the MAP
-    objective, each range weighted by d^4/A at the current iterate). Updates x, p_cov."""
+    objective, each range weighted by 1/sigma^2 = A/d^4 at the current iterate). Updates x
+    and p_cov in place."""
     n = g.n_state
     info0 = _inverse_small(p_cov, n)
     prior = x.copy()
@@ -361,7 +375,8 @@ def _mission_batch(
     for b in prange(q_out.shape[0]):
         status[b] = _mission(
             q_out[b], v_out[b], vref_out[b], eta_out[b], clear_out[b], sep_out[b],
-            cost_out[b], est_out[b], est_var_out[b], noise[b], range_noise[b], s_true[b],
+            cost_out[b], est_out[b], est_var_out[b], noise[b],
+            range_noise[b], s_true[b],
             v_true[b], delta, indptr, indices, rects, circles, f_mat, q_mat, x0[b], p0, g,
         )  # fmt: skip
 
@@ -491,13 +506,27 @@ class MissionResult:
         # A contiguous suffix, so each run's reduction does not depend on the batch.
         k0 = int(np.argmax(self.steady_state))
         tail_error = np.ascontiguousarray(error[:, k0:])
+        tail_std = np.sqrt(np.ascontiguousarray(self.estimate_variance[:, k0:]))
         return {
             "final_estimation_error_m": error[:, -1],
             "steady_rms_estimation_error_m": np.sqrt(np.mean(tail_error**2, axis=1)),
             "steady_max_error_over_sqrt_crlb": np.max(
                 tail_error / np.sqrt(self.crlb[:, k0:]), axis=1
             ),
+            "steady_max_error_over_filter_std": np.max(tail_error / tail_std, axis=1),
         }
+
+    @property
+    def steady_rmse_over_sqrt_pcrb(self) -> float | None:
+        """Batch figure of tracking efficiency: the RMS over runs of the estimation error,
+        divided by the square root of the PCRB, averaged over the steady-state steps (1 for
+        an efficient tracker). ``None`` without estimation."""
+        error = self.estimation_error
+        if error is None:
+            return None
+        tail = self.steady_state
+        rmse = np.sqrt(np.mean(error[:, tail] ** 2, axis=0))
+        return float(np.mean(rmse / np.sqrt(self.pcrb[tail])))
 
     def _run_index(self, run: int) -> int:
         if not isinstance(run, int | np.integer) or not 0 <= run < self.n_runs:
@@ -515,14 +544,23 @@ class MissionResult:
         Returns
         -------
         dict of str to ndarray, shape (K+1,)
-            ``time_s``, ``eta``, ``x_uav1``, ``y_uav1``, ..., in metres.
+            ``time_s``, ``eta``, ``target_x``, ``target_y``, ``estimate_x``, ``estimate_y``
+            (with estimation), ``x_uav1``, ``y_uav1``, ..., in metres.
         """
         b = self._run_index(run)
         if self.positions is None:
             raise ValueError(
                 "result: has no trajectories (simulated with keep_trajectories=False)"
             )
-        cols = {"time_s": self.time, "eta": self.eta[b]}
+        cols = {
+            "time_s": self.time,
+            "eta": self.eta[b],
+            "target_x": self.target[b, :, 0],
+            "target_y": self.target[b, :, 1],
+        }
+        if self.estimate is not None:
+            cols["estimate_x"] = self.estimate[b, :, 0]
+            cols["estimate_y"] = self.estimate[b, :, 1]
         for m in range(self.positions.shape[2]):
             cols[f"x_uav{m + 1}"] = self.positions[b, :, m, 0]
             cols[f"y_uav{m + 1}"] = self.positions[b, :, m, 1]
@@ -593,6 +631,8 @@ class MissionResult:
             "bound_m2": float(self.bound),
             "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
         }
+        if self.estimate is not None:
+            out["steady_rmse_over_sqrt_pcrb"] = self.steady_rmse_over_sqrt_pcrb
         for name, values in self.metrics.items():
             if name == "seed":
                 continue
@@ -662,7 +702,7 @@ def _physical_memory() -> int | None:
 
 def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     """Refuse, naming the cause, a batch whose arrays could not fit in memory."""
-    series = n_runs * (k_steps + 1) * 8 * 8  # eta, crlb, cost, clearance, ... per step
+    series = n_runs * (k_steps + 1) * 14 * 8  # eta, crlb, cost, target, estimate, ... per step
     trajectories = 2 * n_runs * (k_steps + 1) * m_uavs * 2 * 8 if keep else 0
     total = series + trajectories
     limit = _physical_memory()
@@ -770,7 +810,7 @@ def simulate(
     per_run = k_steps * m_uavs * 2 * 8
     chunk_runs = max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
     noise_buf = np.empty((chunk_runs, k_steps, m_uavs, 2))
-    range_buf = np.zeros((chunk_runs, k_steps + 1, m_uavs))
+    range_buf = np.zeros((chunk_runs, k_steps + 1, m_uavs))  # stays zero without estimation
     est_buf = np.zeros((chunk_runs, k_steps + 1, 2))
     est_var_buf = np.zeros((chunk_runs, k_steps + 1))
     if not keep_trajectories:
@@ -820,7 +860,7 @@ def simulate(
         if est.enabled:
             estimate[lo:hi] = est_buf[: hi - lo]
             estimate_var[lo:hi] = est_var_buf[: hi - lo]
-            fim_sum += mean_range_information(pos, target_xy[lo:hi], sc.altitude, radar)
+            fim_sum += summed_range_information(pos, target_xy[lo:hi], sc.altitude, radar)
         if progress is not None:
             progress(hi)
 

@@ -27,6 +27,14 @@ zero elsewhere), added at the steps where ranges are measured; the expectation o
 target's (and the UAVs') trajectories is taken as the average over the simulated runs. The
 bound on the mean squared position error at step :math:`k` is the trace of the position
 block of :math:`\mathbf J_k^{-1}`.
+
+As computed by the simulator the PCRB is an approximation of the bound, for three reasons:
+the expectation is a Monte Carlo average over the runs of the batch (a batch of one run
+gives the bound along that single trajectory); the UAV trajectories depend on past
+measurements (closed loop), whereas the bound treats them as given; and the scenarios start
+the filter from a fixed prior mean (``prior_offset``) rather than one drawn from
+:math:`\mathcal N(\mathbf x_0, \mathbf P_0)`, so the first steps are a reference rather
+than a strict bound. In steady state the last two no longer matter.
 """
 
 from __future__ import annotations
@@ -36,13 +44,14 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _validation as _v
 from .fisher import fisher_information
 from .radar import Radar
 
 __all__ = [
-    "mean_range_information",
     "motion_matrices",
     "posterior_crlb",
+    "summed_range_information",
     "target_trajectories",
 ]
 
@@ -72,6 +81,12 @@ def motion_matrices(
     n_state : int
         2 for ``static`` (position only), 4 otherwise.
     """
+    step = _v.scalar(dt, "dt")
+    if not step > 0:
+        raise ValueError(f"dt: must be > 0, got {dt!r}")
+    sigma = _v.scalar(acceleration_noise, "acceleration_noise")
+    if sigma < 0:
+        raise ValueError(f"acceleration_noise: must be >= 0, got {acceleration_noise!r}")
     f = np.eye(4)
     q = np.zeros((4, 4))
     if model == "static":
@@ -89,9 +104,14 @@ def motion_matrices(
         f[2:, 2:] = [[c, -s], [s, c]]
     else:
         raise ValueError(f"model: expected static, constant_velocity or turning, got {model!r}")
-    g = np.vstack([0.5 * dt * dt * np.eye(2), dt * np.eye(2)])
+    g = _noise_gain(dt)
     q = acceleration_noise**2 * (g @ g.T)
     return f, q, 4
+
+
+def _noise_gain(dt: float) -> np.ndarray:
+    """G of the piecewise-constant white acceleration: position dt^2/2, velocity dt."""
+    return np.vstack([0.5 * dt * dt * np.eye(2), dt * np.eye(2)])
 
 
 def target_trajectories(
@@ -131,10 +151,20 @@ def target_trajectories(
         Position and velocity of the target at every step.
     """
     f, _, _ = motion_matrices(model, dt, turn_rate, acceleration_noise)
-    g = np.vstack([0.5 * dt * dt * np.eye(2), dt * np.eye(2)])
+    g = _noise_gain(dt)
+    k_steps = _v.count(n_steps, "n_steps", 0)
+    if model == "static" and acceleration_noise > 0:
+        raise ValueError("acceleration_noise: a static target takes no acceleration noise")
+    if acceleration_noise > 0 and not all(isinstance(r, np.random.Generator) for r in rngs):
+        raise ValueError("rngs: expected one numpy.random.Generator per run")
+    start = _v.point(start_xy, "start_xy")
+    vel = _v.point(velocity, "velocity")
+    if start.shape != (2,) or vel.shape != (2,):
+        raise ValueError("start_xy, velocity: expected shape (2,) each")
+    n_steps = k_steps
     out = np.empty((len(rngs), n_steps + 1, 4))
-    out[:, 0, :2] = start_xy
-    out[:, 0, 2:] = velocity if model != "static" else 0.0
+    out[:, 0, :2] = start
+    out[:, 0, 2:] = vel if model != "static" else 0.0
     if acceleration_noise > 0 and model != "static":
         accel = np.stack([r.standard_normal((n_steps, 2)) for r in rngs]) * acceleration_noise
     else:
@@ -156,7 +186,7 @@ def _propagate(f, g, accel, out):
                 out[b, k + 1, r] = acc + g[r, 0] * accel[b, k, 0] + g[r, 1] * accel[b, k, 1]
 
 
-def mean_range_information(
+def summed_range_information(
     uav_xy: np.ndarray, target_xy: np.ndarray, altitude: float, radar: Radar
 ) -> np.ndarray:
     r"""Sum over runs of the FIM of one set of ranges at every step (:func:`posterior_crlb`).
@@ -211,9 +241,19 @@ def posterior_crlb(
     ndarray, shape (K+1,)
         Bound on the mean squared position error after each step's measurement, m^2.
     """
+    fim = _v.as_float_array(mean_fim, "mean_fim")
+    if fim.ndim != 3 or fim.shape[1:] != (2, 2):
+        raise ValueError(f"mean_fim: expected shape (K+1, 2, 2), got {fim.shape}")
+    if n_state not in (2, 4):
+        raise ValueError(f"n_state: must be 2 or 4, got {n_state!r}")
+    every = _v.count(measure_every, "measure_every", 1)
     n = n_state
-    steps = mean_fim.shape[0]
-    fim = mean_fim
+    steps = fim.shape[0]
+    try:
+        np.linalg.cholesky(np.asarray(p0, dtype=float)[:n, :n])
+    except np.linalg.LinAlgError as exc:
+        raise ValueError("p0: the prior covariance must be positive definite") from exc
+    measure_every = every
     fk, qk = f[:n, :n], q[:n, :n]
     info = np.linalg.inv(p0[:n, :n])
     out = np.empty(steps)
