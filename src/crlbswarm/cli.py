@@ -139,8 +139,10 @@ def build_parser() -> argparse.ArgumentParser:
     figures = sub.add_parser(
         "figures",
         help="write the paper's figures and their data to a folder",
-        description="Write Fig. 2 (CRLB vs altitude), the optimal elevation vs altitude, "
-        "and the data behind each figure as CSV.",
+        description="Write Figs. 2-4 of the paper (CRLB vs altitude; the paper mission's "
+        "trajectories, CRLB and cost), the optimal elevation vs altitude, the MLE's MSE vs "
+        "the CRLB, sensing in the loop and moving-target tracking, with the data behind "
+        "each figure as CSV.",
     )
     figures.add_argument(
         "--out", required=True, type=Path, metavar="DIR", help="output folder (created if missing)"
@@ -167,7 +169,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     scenario_sub = scenario.add_subparsers(dest="action", required=True, metavar="ACTION")
     show = scenario_sub.add_parser("show", help="print a scenario (built-in or file) as TOML")
-    show.add_argument("scenario", metavar="SCENARIO", help="built-in name (paper) or TOML file")
+    show.add_argument(
+        "scenario",
+        metavar="SCENARIO",
+        help="built-in name (paper, sensing, moving_target) or TOML file",
+    )
     show.set_defaults(func=_cmd_scenario_show)
     listing = scenario_sub.add_parser("list", help="list the built-in scenarios")
     listing.set_defaults(func=_cmd_scenario_list)
@@ -179,7 +185,9 @@ def build_parser() -> argparse.ArgumentParser:
         "trajectories (.npz), per-run metrics (CSV), a summary (JSON) and the scenario used.",
     )
     simulate.add_argument(
-        "scenario", metavar="SCENARIO", help="built-in name (paper) or TOML file"
+        "scenario",
+        metavar="SCENARIO",
+        help="built-in name (paper, sensing, moving_target) or TOML file",
     )
     simulate.add_argument("--seed", type=int, default=0, help="seed of the first run (default 0)")
     simulate.add_argument(

@@ -284,7 +284,8 @@ def plot_mission_trajectories(
     if np.ptp(target_path, axis=0).max() > 0:
         ax.plot(*target_path.T, color="C3", lw=1.0, ls=":", label="target path")
     if result.estimate is not None:
-        ax.plot(*result.estimate[run].T, color="C1", lw=0.8, alpha=0.8, label="UAVs' estimate")
+        ax.plot(*result.estimate[run].T, color="k", lw=0.8, ls="--", alpha=0.8,
+                label="UAVs' estimate")  # fmt: skip
     ax.plot(*final_target, marker="*", ms=12, color="C3", ls="none", label="target")
     ax.set_aspect("equal")
     ax.autoscale_view()

@@ -1,11 +1,12 @@
-"""Mission scenarios: a pydantic model read from TOML, and the built-in ``paper`` scenario.
+"""Mission scenarios: a pydantic model read from TOML, and the built-in scenarios.
 
 A scenario fixes everything a mission simulation needs: the UAVs and how they start, the
 altitude and the target, the radar, the time step, the control gains, the motion
 disturbance, the communication graph, the obstacles and the rule for the scaling factor
-eta. Files are TOML (read with :mod:`tomllib`); ``crlbswarm scenario show paper`` prints the
-built-in paper scenario as a file to copy and edit. Every field, its unit and its default is
-listed in ``docs/scenarios.md``.
+eta, and (beyond the paper) sensing in the loop and the target's motion. Files are TOML
+(read with :mod:`tomllib`); ``crlbswarm scenario show paper`` prints the built-in paper
+scenario as a file to copy and edit; ``sensing`` and ``moving_target`` are the other
+built-ins. Every field, its unit and its default is listed in ``docs/scenarios.md``.
 
 Validation happens when the scenario is built, before anything runs: unknown or missing
 fields, wrong types, fewer than 3 UAVs, a disconnected graph, a start or target inside an
@@ -299,7 +300,7 @@ class EstimationConfig(_Model):
     @model_validator(mode="after")
     def _prior_consistent(self) -> EstimationConfig:
         offset = math.hypot(*self.prior_offset)
-        if offset > MAX_PRIOR_SIGMAS * self.prior_std:
+        if self.enabled and offset > MAX_PRIOR_SIGMAS * self.prior_std:
             raise _FieldError(
                 "estimation.prior_offset",
                 f"is {offset:g} m, more than {MAX_PRIOR_SIGMAS:g} prior_std = "
@@ -740,7 +741,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     Parameters
     ----------
     name_or_path : str or path-like
-        ``"paper"`` (see :data:`BUILTIN_SCENARIOS`) or the path of a ``.toml`` file.
+        ``"paper"``, ``"sensing"``, ``"moving_target"`` (see :data:`BUILTIN_SCENARIOS`) or
+        the path of a ``.toml`` file.
 
     Returns
     -------
