@@ -32,6 +32,7 @@ from crlbswarm import (
     start_positions,
 )
 from crlbswarm.cli import main
+from kalman_reference import kf_position_mse
 
 SEEDS = range(50)
 #: The prior of the built-in scenarios is exactly this far from the truth, m.
@@ -74,24 +75,6 @@ def fim_reference(uav_xy: np.ndarray, target_xy: np.ndarray, altitude: float, a:
     d2 = np.sum(off**2, axis=-1) + altitude**2
     weight = (a / d2**2 + 8.0 / d2) / d2
     return np.einsum("...m,...mi,...mj->...ij", weight, off, off)
-
-
-def kf_position_mse(fims, f, q, p0, measure_every=1) -> np.ndarray:
-    """tr(P_pos) of the Kalman filter with H = [I 0], R_k = J_k^-1 (covariance, Joseph form)."""
-    n = f.shape[0]
-    h = np.hstack([np.eye(2), np.zeros((2, n - 2))])
-    p = p0.copy()
-    out = []
-    for k, jz in enumerate(fims):
-        if k > 0:
-            p = f @ p @ f.T + q
-        if k % measure_every == 0:
-            r = np.linalg.inv(jz)
-            gain = p @ h.T @ np.linalg.inv(h @ p @ h.T + r)
-            a = np.eye(n) - gain @ h
-            p = a @ p @ a.T + gain @ r @ gain.T
-        out.append(np.trace(p[:2, :2]))
-    return np.array(out)
 
 
 def cv_matrices(dt: float, sigma_a: float) -> tuple[np.ndarray, np.ndarray]:

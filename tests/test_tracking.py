@@ -32,6 +32,7 @@ from crlbswarm.tracking import (
     summed_range_information,
     target_trajectories,
 )
+from kalman_reference import kf_position_mse
 
 SEEDS = [0, 1, 7, 2024]
 I2 = np.eye(2)
@@ -68,30 +69,6 @@ def ct_reference(dt: float, w: float) -> np.ndarray:
     )
     order = [0, 2, 1, 3]  # crlbswarm index i is the book's index order[i]
     return book[np.ix_(order, order)]
-
-
-def kf_position_mse(
-    fims: np.ndarray, f: np.ndarray, q: np.ndarray, p0: np.ndarray, measure_every: int = 1
-) -> np.ndarray:
-    """tr(P_pos) of a Kalman filter with H = [I 0] and R_k = J_k^-1, covariance form.
-
-    Update at step 0 (no prediction before it), then predict-update; the update uses the
-    gain K = P H^T (H P H^T + R)^-1 and the Joseph form, so nothing here is information form.
-    """
-    n = f.shape[0]
-    h = np.hstack([I2, np.zeros((2, n - 2))])
-    p = p0.copy()
-    out = []
-    for k, jz in enumerate(fims):
-        if k > 0:
-            p = f @ p @ f.T + q
-        if k % measure_every == 0:
-            r = np.linalg.inv(jz)
-            gain = p @ h.T @ np.linalg.inv(h @ p @ h.T + r)
-            a = np.eye(n) - gain @ h
-            p = a @ p @ a.T + gain @ r @ gain.T
-        out.append(np.trace(p[:2, :2]))
-    return np.array(out)
 
 
 def random_fims(rng: np.random.Generator, steps: int, scale: float = 1.0) -> np.ndarray:
