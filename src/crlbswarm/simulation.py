@@ -121,23 +121,29 @@ def _min_separation(q):
         nx = min(int((x1 - x0) / cell) + 1, 4 * n)
         ny = min(int((y1 - y0) / cell) + 1, 4 * n)
         cell = max(cell, (x1 - x0) / nx * (1 + 1e-12), (y1 - y0) / ny * (1 + 1e-12))
+        # Counting sort of the UAVs by cell: start[k] .. start[k + 1] index ``order``.
         key = np.empty(n, dtype=np.int64)
+        start = np.zeros(nx * ny + 1, dtype=np.int64)
         for m in range(n):
             cx = min(int((q[m, 0] - x0) / cell), nx - 1)
             cy = min(int((q[m, 1] - y0) / cell), ny - 1)
             key[m] = cx * ny + cy
-        order = np.argsort(key, kind="mergesort")
-        sorted_keys = key[order]
+            start[key[m] + 1] += 1
+        for k in range(nx * ny):
+            start[k + 1] += start[k]
+        fill = start[:-1].copy()
+        order = np.empty(n, dtype=np.int64)
+        for m in range(n):
+            order[fill[key[m]]] = m
+            fill[key[m]] += 1
         best = cell * cell
         found = False
-        for i in range(n):
-            m = order[i]
-            cx, cy = sorted_keys[i] // ny, sorted_keys[i] % ny
+        for m in range(n):
+            cx, cy = key[m] // ny, key[m] % ny
             for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
                 for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
                     k = ax * ny + ay
-                    j = np.searchsorted(sorted_keys, k)
-                    while j < n and sorted_keys[j] == k:
+                    for j in range(start[k], start[k + 1]):
                         p = order[j]
                         if p > m:
                             dx = q[m, 0] - q[p, 0]
@@ -146,7 +152,6 @@ def _min_separation(q):
                             if d2 < best:
                                 best = d2
                                 found = True
-                        j += 1
         if found:
             return math.sqrt(best)
         cell *= 2.0
