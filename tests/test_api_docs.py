@@ -33,6 +33,7 @@ MODULES = [
     "crlbswarm.estimation",
     "crlbswarm.montecarlo",
     "crlbswarm.tracking",
+    "crlbswarm.campaign",
 ]
 
 

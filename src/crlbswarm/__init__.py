@@ -7,6 +7,7 @@ Positions are horizontal coordinates in metres, shape ``(..., M, 2)`` (UAVs are 
 every function accepts any leading batch shape. Angles are radians inside the library.
 """
 
+from .campaign import CampaignSpec, run_campaign
 from .control import (
     Obstacles,
     consensus_step,
@@ -88,6 +89,7 @@ __all__ = [
     "SPEED_OF_LIGHT",
     "Adjacency",
     "AltitudeSweep",
+    "CampaignSpec",
     "ElevationCurve",
     "EstimatorSweep",
     "MissionResult",
@@ -142,6 +144,7 @@ __all__ = [
     "range_information",
     "regular_polygon",
     "repulsion",
+    "run_campaign",
     "simulate",
     "slant_ranges",
     "start_positions",

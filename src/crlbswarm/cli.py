@@ -200,6 +200,24 @@ def build_parser() -> argparse.ArgumentParser:
         help="do not keep positions and velocities (metrics and time series only)",
     )
     simulate.set_defaults(func=_cmd_simulate)
+
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a Monte Carlo campaign (variants x seeds) on Dask",
+        description="Run or resume a campaign described by a TOML spec (docs/campaigns.md) on "
+        "a local Dask cluster or an existing scheduler; one row of metrics per run in a "
+        "Parquet dataset under DIR/runs. Re-running the same command resumes.",
+    )
+    sweep.add_argument("spec", metavar="SPEC", type=Path, help="campaign spec (TOML)")
+    sweep.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    sweep.add_argument(
+        "--scheduler", metavar="ADDRESS", default=None,
+        help="address of a running Dask scheduler (default: start a local cluster)",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--workers", type=int, default=None, help="workers of the local cluster (default: cores)"
+    )
+    sweep.set_defaults(func=_cmd_sweep)
     return parser
 
 
@@ -495,6 +513,37 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     write_json(out / "summary.json", summary)
     for name in ("trajectories.npz", "metrics.csv", "scenario.toml", "summary.json"):
         print(f"wrote {out / name}")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .campaign import CampaignSpec, plan_tasks, run_campaign
+
+    try:
+        text = args.spec.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"SPEC: cannot read {str(args.spec)!r}: {exc}") from exc
+    spec = CampaignSpec.from_toml(text, source=str(args.spec))
+    plan_tasks(spec)  # every variant validated before anything runs or is written
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers: must be >= 1, got {args.workers}")
+    _check_out(args.out)
+    with tqdm(unit="task", disable=None, file=sys.stderr) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        counts = run_campaign(
+            spec, args.out, scheduler=args.scheduler, n_workers=args.workers,
+            spec_text=text, progress=progress,
+        )  # fmt: skip
+    print(
+        f"{counts['tasks']} tasks over {counts['variants']} variants: ran {counts['ran']}, "
+        f"skipped {counts['skipped']} already finished; results in {args.out / 'runs'}"
+    )
     return 0
 
 

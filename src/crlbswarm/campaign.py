@@ -1,0 +1,387 @@
+"""Monte Carlo campaigns on Dask: scenario variants times seeds, resumable, as Parquet.
+
+A campaign is a TOML spec (:class:`CampaignSpec`): a base scenario, a grid (or a seeded
+random sample) of changes to its fields, and a range of seeds per variant. Its runs are
+grouped into tasks of ``batch_size`` seeds of one variant, so that the vectorised simulator
+does the work, and the tasks are executed by a Dask cluster: a local one started for the
+campaign by default, or an existing scheduler.
+
+Output, under the campaign folder:
+
+* ``spec.toml``: the spec, as given;
+* ``variants.parquet``: one row per variant, its id and the value of every changed field;
+* ``runs/variant=<id>/part-<first seed>-<last seed>.parquet``: one file per finished task,
+  one row per run: the variant id, the seed, the changed fields and the per-run metrics of
+  :class:`crlbswarm.MissionResult`. Together they form a hive-partitioned Parquet dataset,
+  readable by ``pandas.read_parquet(folder / "runs")`` or ``polars.read_parquet``.
+
+Every file is written atomically (temporary name, then rename), and a task's file exists
+only once the task has finished, so re-running the same command resumes: finished tasks are
+skipped, and an interrupted campaign loses only the tasks in flight. Tasks whose worker dies
+are retried by Dask (``retries``).
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .output import atomic_path, write_text
+from .scenario import _BUILTINS, Scenario, ScenarioError, _describe
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["CampaignSpec", "plan_tasks", "run_campaign", "run_task"]
+
+#: Times a task is retried when its worker dies.
+RETRIES = 3
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+class SeedRange(_Model):
+    """Seeds ``start, start + 1, ..., start + count - 1`` for every variant."""
+
+    start: Annotated[int, Field(ge=0)] = 0
+    count: Annotated[int, Field(ge=1)]
+
+
+class Distribution(_Model):
+    """A random field value: ``uniform = [low, high]`` or ``choice = [a, b, ...]``."""
+
+    uniform: Annotated[list[float], Field(min_length=2, max_length=2)] | None = None
+    choice: Annotated[list[Any], Field(min_length=1)] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> Distribution:
+        if (self.uniform is None) == (self.choice is None):
+            raise ValueError("give exactly one of 'uniform' and 'choice'")
+        return self
+
+
+class RandomSample(_Model):
+    """``samples`` variants with each field drawn from its distribution (seeded)."""
+
+    samples: Annotated[int, Field(ge=1)]
+    seed: Annotated[int, Field(ge=0)] = 0
+    fields: dict[str, Distribution]
+
+
+class CampaignSpec(_Model):
+    """A campaign: base scenario, variants (grid or random) and seeds.
+
+    Parameters
+    ----------
+    base : str
+        Built-in scenario name or path of a scenario TOML file.
+    seeds : SeedRange
+        Seeds of every variant.
+    grid : dict of str to list, optional
+        Dotted scenario fields and their values; the variants are their cartesian product.
+    random : RandomSample, optional
+        Instead of ``grid``: a seeded random sample of variants.
+    batch_size : int, default 250
+        Runs per task (one variant, consecutive seeds).
+    trajectories : bool, default False
+        Also save each task's trajectories (``.npz`` beside its Parquet file).
+    """
+
+    base: str
+    seeds: SeedRange
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] | None = None
+    random: RandomSample | None = None
+    batch_size: Annotated[int, Field(ge=1)] = 250
+    trajectories: bool = False
+
+    @model_validator(mode="after")
+    def _variants(self) -> CampaignSpec:
+        if self.grid is not None and self.random is not None:
+            raise ValueError("give at most one of 'grid' and 'random'")
+        return self
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "campaign") -> CampaignSpec:
+        """Parse and validate a spec from TOML text (errors name the field in one line).
+
+        Parameters
+        ----------
+        text : str
+            TOML document.
+        source : str, default "campaign"
+            Name used in error messages.
+
+        Returns
+        -------
+        CampaignSpec
+            The validated spec.
+        """
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{source}: invalid TOML: {exc}") from exc
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            raise ScenarioError(f"{source}: {_describe(exc)}") from None
+
+    def base_dict(self) -> dict[str, Any]:
+        """The base scenario as a dictionary (built-in, or read from its TOML file).
+
+        Returns
+        -------
+        dict
+            Scenario data, ready for :meth:`crlbswarm.Scenario.from_dict`.
+        """
+        if self.base in _BUILTINS:
+            return copy.deepcopy(_BUILTINS[self.base])
+        path = Path(self.base)
+        try:
+            return tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            raise ScenarioError(f"base: cannot read scenario {self.base!r}: {exc}") from exc
+
+    def variants(self) -> list[dict[str, Any]]:
+        """The changed fields of every variant, in a fixed order.
+
+        Returns
+        -------
+        list of dict
+            One mapping of dotted field to value per variant (one empty mapping if the
+            spec has neither grid nor random sample).
+        """
+        if self.grid is not None:
+            names = list(self.grid)
+            combos = itertools.product(*self.grid.values())
+            return [dict(zip(names, combo, strict=True)) for combo in combos]
+        if self.random is not None:
+            rng = np.random.default_rng(self.random.seed)
+            out = []
+            for _ in range(self.random.samples):
+                row = {}
+                for name, dist in self.random.fields.items():
+                    if dist.uniform is not None:
+                        row[name] = float(rng.uniform(*dist.uniform))
+                    else:
+                        row[name] = dist.choice[int(rng.integers(len(dist.choice)))]
+                out.append(row)
+            return out
+        return [{}]
+
+
+def _apply(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    data = copy.deepcopy(base)
+    for dotted, value in changes.items():
+        node = data
+        *parents, leaf = dotted.split(".")
+        for key in parents:
+            node = node.setdefault(key, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"grid.{dotted}: '{key}' is not a table of the scenario")
+        node[leaf] = value
+    return data
+
+
+def plan_tasks(spec: CampaignSpec) -> tuple[list[dict[str, Any]], list[tuple[int, int, int]]]:
+    """Validate every variant's scenario and split the runs into tasks.
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+        The campaign.
+
+    Returns
+    -------
+    scenarios : list of dict
+        The scenario data of each variant (validated).
+    tasks : list of (variant, first seed, last seed)
+        Consecutive seeds of one variant, at most ``batch_size`` per task.
+
+    Raises
+    ------
+    ScenarioError
+        If a variant is not a valid scenario (one line naming the variant and the field).
+    """
+    base = spec.base_dict()
+    scenarios = []
+    for i, changes in enumerate(spec.variants()):
+        data = _apply(base, changes)
+        Scenario.from_dict(data, source=f"variant {i} ({_label(changes)})")
+        scenarios.append(data)
+    first, count = spec.seeds.start, spec.seeds.count
+    tasks = [
+        (v, s, min(s + spec.batch_size, first + count) - 1)
+        for v in range(len(scenarios))
+        for s in range(first, first + count, spec.batch_size)
+    ]
+    return scenarios, tasks
+
+
+def _label(changes: dict[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in changes.items()) or "base"
+
+
+def run_task(
+    scenario_data: dict[str, Any], variant: int, first: int, last: int, trajectories: bool
+) -> dict[str, Any]:
+    """Simulate one task (a variant's seeds ``first..last``) and return its metrics.
+
+    Runs on a Dask worker; Numba uses one thread there, the workers provide the parallelism.
+
+    Parameters
+    ----------
+    scenario_data : dict
+        The variant's scenario.
+    variant : int
+        Variant id.
+    first : int
+        First seed.
+    last : int
+        Last seed (inclusive).
+    trajectories : bool
+        Also return the positions (B, K+1, M, 2).
+
+    Returns
+    -------
+    dict
+        ``columns`` (metric name to 1-D array, with ``variant`` and ``seed``) and optionally
+        ``positions``.
+    """
+    import numba
+
+    numba.set_num_threads(1)
+    from .simulation import simulate
+
+    result = simulate(
+        Scenario.from_dict(scenario_data),
+        seeds=range(first, last + 1),
+        keep_trajectories=trajectories,
+    )
+    columns = {"variant": np.full(result.n_runs, variant, dtype=np.int64)}
+    columns.update({k: np.asarray(v) for k, v in result.metrics.items()})
+    out: dict[str, Any] = {"columns": columns}
+    if trajectories:
+        out["positions"] = result.positions
+    return out
+
+
+def _part_path(out: Path, variant: int, first: int, last: int) -> Path:
+    return out / "runs" / f"variant={variant:05d}" / f"part-{first:012d}-{last:012d}.parquet"
+
+
+def _write_part(path: Path, columns: dict[str, np.ndarray], changes: dict[str, Any]) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = len(columns["seed"])
+    table = {name: values for name, values in columns.items() if name != "variant"}
+    for field, value in changes.items():
+        table[field] = [value] * n
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        pq.write_table(pa.table(table), tmp)
+
+
+def run_campaign(
+    spec: CampaignSpec,
+    out: str | Path,
+    *,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    spec_text: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, int]:
+    """Run (or resume) a campaign on Dask and write its Parquet dataset under ``out``.
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+        The campaign.
+    out : str or path-like
+        Output folder (created if missing).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:port``); by default a local
+        cluster is started on this machine and closed at the end.
+    n_workers : int, optional
+        Workers of the local cluster (default: one per core).
+    spec_text : str, optional
+        The spec's TOML text, saved as ``spec.toml``.
+    progress : callable, optional
+        Called with (finished tasks, total tasks) after each task.
+
+    Returns
+    -------
+    dict
+        ``variants``, ``tasks``, ``skipped`` (already finished) and ``ran`` task counts.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    folder = Path(out)
+    scenarios, tasks = plan_tasks(spec)  # validate everything before anything runs
+    variants = spec.variants()
+    folder.mkdir(parents=True, exist_ok=True)
+    if spec_text is not None:
+        write_text(folder / "spec.toml", spec_text)
+    rows = {"variant": list(range(len(variants)))}
+    for name in {k for v in variants for k in v}:
+        rows[name] = [v.get(name) for v in variants]
+    with atomic_path(folder / "variants.parquet") as tmp:
+        pq.write_table(pa.table(rows), tmp)
+
+    # Temporaries of tasks interrupted while being written (hidden files, which Parquet
+    # readers skip) are stale: remove them.
+    for stale in folder.glob("runs/*/.part-*"):
+        stale.unlink(missing_ok=True)
+    todo = [t for t in tasks if not _part_path(folder, *t).exists()]
+    done = len(tasks) - len(todo)
+    if progress is not None:
+        progress(done, len(tasks))
+    if todo:
+        cluster = None
+        if scheduler is None:
+            cluster = LocalCluster(
+                n_workers=n_workers, threads_per_worker=1, processes=True,
+                dashboard_address=None,
+            )  # fmt: skip
+        try:
+            with Client(scheduler or cluster) as client:
+                futures = {
+                    client.submit(
+                        run_task, scenarios[v], v, a, b, spec.trajectories,
+                        key=f"crlbswarm-task-{v}-{a}-{b}", retries=RETRIES, pure=False,
+                    ): (v, a, b)
+                    for v, a, b in todo
+                }  # fmt: skip
+                for future in as_completed(futures):
+                    v, a, b = futures[future]
+                    result = future.result()
+                    path = _part_path(folder, v, a, b)
+                    if spec.trajectories:
+                        with atomic_path(path.with_suffix(".npz")) as tmp:
+                            np.savez(tmp, positions=result["positions"])
+                    _write_part(path, result["columns"], variants[v])
+                    done += 1
+                    if progress is not None:
+                        progress(done, len(tasks))
+        finally:
+            if cluster is not None:
+                cluster.close()
+    return {
+        "variants": len(variants),
+        "tasks": len(tasks),
+        "skipped": len(tasks) - len(todo),
+        "ran": len(todo),
+    }

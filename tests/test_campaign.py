@@ -1,0 +1,189 @@
+"""Campaigns on Dask: a real local cluster, a separate scheduler and worker on 127.0.0.1,
+and an interrupted campaign resumed to the same dataset as an uninterrupted one."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from crlbswarm import ScenarioError, load_scenario, simulate
+from crlbswarm.campaign import CampaignSpec, plan_tasks, run_campaign
+from crlbswarm.scenario import Scenario
+
+SPEC = """
+base = "paper"
+batch_size = 7
+[seeds]
+start = 3
+count = 16
+[grid]
+"control.cruise_speed" = [2.0, 3.0]
+"""
+
+
+def load_runs(folder: Path) -> pd.DataFrame:
+    df = pd.read_parquet(folder / "runs")
+    df["variant"] = df["variant"].astype(int)
+    return df.sort_values(["variant", "seed"]).reset_index(drop=True)
+
+
+def direct(spec: CampaignSpec) -> pd.DataFrame:
+    """The same runs without Dask: one batched simulate per variant."""
+    scenarios, _ = plan_tasks(spec)
+    frames = []
+    seeds = range(spec.seeds.start, spec.seeds.start + spec.seeds.count)
+    for v, data in enumerate(scenarios):
+        metrics = simulate(Scenario.from_dict(data), seeds=seeds).metrics
+        frames.append(pd.DataFrame({"variant": v, **metrics}))
+    return pd.concat(frames).sort_values(["variant", "seed"]).reset_index(drop=True)
+
+
+def assert_same(runs: pd.DataFrame, expected: pd.DataFrame) -> None:
+    assert len(runs) == len(expected)
+    assert not runs.duplicated(["variant", "seed"]).any()
+    for name in expected.columns:
+        np.testing.assert_array_equal(runs[name].to_numpy(), expected[name].to_numpy(), name)
+
+
+def test_plan_splits_seeds_into_batches_per_variant():
+    spec = CampaignSpec.from_toml(SPEC)
+    scenarios, tasks = plan_tasks(spec)
+    assert len(scenarios) == 2
+    assert tasks == [(0, 3, 9), (0, 10, 16), (0, 17, 18), (1, 3, 9), (1, 10, 16), (1, 17, 18)]
+    assert scenarios[1]["control"]["cruise_speed"] == 3.0
+
+
+def test_local_cluster_with_two_workers_matches_a_direct_batch(tmp_path):
+    spec = CampaignSpec.from_toml(SPEC)
+    counts = run_campaign(spec, tmp_path, n_workers=2, spec_text=SPEC)
+    assert counts == {"variants": 2, "tasks": 6, "skipped": 0, "ran": 6}
+    runs = load_runs(tmp_path)
+    assert_same(runs[direct(spec).columns], direct(spec))
+    assert set(runs["control.cruise_speed"]) == {2.0, 3.0}
+    assert (tmp_path / "spec.toml").read_text() == SPEC
+    # A second run finds everything done.
+    assert run_campaign(spec, tmp_path, n_workers=2)["skipped"] == 6
+
+
+def _wait_for(path: Path, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{path} did not appear within {timeout} s")
+        time.sleep(0.2)
+
+
+def test_separate_scheduler_and_worker_processes_on_loopback(tmp_path):
+    """`dask scheduler` and `dask worker` as separate processes on 127.0.0.1."""
+    info = tmp_path / "scheduler.json"
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+    scheduler = subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+         "--port", "0", "--no-dashboard", "--scheduler-file", str(info)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+    )  # fmt: skip
+    worker = None
+    try:
+        _wait_for(info, 60)
+        worker = subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file", str(info),
+             "--nthreads", "1", "--nworkers", "1", "--no-dashboard", "--host", "127.0.0.1"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+        )  # fmt: skip
+        import json
+
+        address = json.loads(info.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        spec = CampaignSpec.from_toml(SPEC)
+        run_campaign(spec, tmp_path / "out", scheduler=address)
+        runs = load_runs(tmp_path / "out")
+        expected = direct(spec)
+        assert_same(runs[expected.columns], expected)
+    finally:
+        for proc in (worker, scheduler):
+            if proc is not None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+
+
+def test_killed_campaign_resumes_to_the_same_dataset(tmp_path):
+    """Kill the CLI (and its local cluster) once some tasks have finished; re-running the
+    same command completes the dataset: same rows as an uninterrupted run, no duplicates."""
+    spec_text = SPEC.replace("batch_size = 7", "batch_size = 2").replace(
+        "count = 16", "count = 40"
+    )
+    spec_path = tmp_path / "spec.toml"
+    spec_path.write_text(spec_text)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "crlbswarm.cli", "sweep", str(spec_path), "--out", str(out),
+           "--workers", "1"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(out.glob("runs/*/*.parquet"))) < 3:
+            assert proc.poll() is None, "the campaign ended before it could be interrupted"
+            assert time.monotonic() < deadline, "no task finished within 120 s"
+            time.sleep(0.1)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finished = len(list(out.glob("runs/*/*.parquet")))
+    assert 3 <= finished < 40
+    # A file being written at the kill stays a hidden temporary (.part-...), which Parquet
+    # readers skip; the resumed run removes it.
+    assert len(load_runs(out)) == 2 * finished
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    assert f"skipped {finished}" in done.stdout
+    assert not list(out.glob("runs/*/.*"))
+    expected = direct(CampaignSpec.from_toml(spec_text))
+    runs = load_runs(out)
+    assert_same(runs[expected.columns], expected)
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ('base = "paper"\n[seeds]\ncount = 0\n', "seeds.count"),
+        ('base = "paper"\nbatch = 3\n[seeds]\ncount = 2\n', "batch"),
+        ('base = "nowhere.toml"\n[seeds]\ncount = 2\n', "base"),
+        ('base = "paper"\n[seeds]\ncount = 2\n[grid]\n"uavs.count" = [2]\n', "uavs.count"),
+    ],
+)
+def test_bad_specs_name_the_field_and_run_nothing(tmp_path, text, field):
+    def attempt():
+        run_campaign(CampaignSpec.from_toml(text), tmp_path / "out")
+
+    with pytest.raises(ScenarioError, match=field):
+        attempt()
+    assert not (tmp_path / "out").exists()
+
+
+def test_sweep_cli_one_line_error_and_exit_2(tmp_path, capsys):
+    from crlbswarm.cli import main
+
+    path = tmp_path / "bad.toml"
+    path.write_text('base = "paper"\n[seeds]\ncount = 2\n[grid]\n"uavs.count" = [2]\n')
+    status = main(["sweep", str(path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert err.count("\n") == 1
+    assert "uavs.count" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_paper_base_is_the_builtin():
+    spec = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n')
+    assert Scenario.from_dict(spec.base_dict()) == load_scenario("paper")
