@@ -187,3 +187,21 @@ def test_sweep_cli_one_line_error_and_exit_2(tmp_path, capsys):
 def test_paper_base_is_the_builtin():
     spec = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n')
     assert Scenario.from_dict(spec.base_dict()) == load_scenario("paper")
+
+
+def test_random_sample_of_variants_is_seeded_and_in_range():
+    text = (
+        'base = "paper"\n[seeds]\ncount = 1\n[random]\nsamples = 5\nseed = 7\n'
+        'fields = { "altitude" = { uniform = [10.0, 60.0] }, '
+        '"control.cruise_speed" = { choice = [2.0, 3.0] } }\n'
+    )
+    a = CampaignSpec.from_toml(text).variants()
+    b = CampaignSpec.from_toml(text).variants()
+    assert a == b
+    assert len(a) == 5
+    assert all(10.0 <= v["altitude"] <= 60.0 for v in a)
+    assert {v["control.cruise_speed"] for v in a} <= {2.0, 3.0}
+    assert CampaignSpec.from_toml(text.replace("seed = 7", "seed = 8")).variants() != a
+    scenarios, tasks = plan_tasks(CampaignSpec.from_toml(text))
+    assert [s["altitude"] for s in scenarios] == [v["altitude"] for v in a]
+    assert len(tasks) == 5
