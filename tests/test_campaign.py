@@ -205,3 +205,17 @@ def test_random_sample_of_variants_is_seeded_and_in_range():
     scenarios, tasks = plan_tasks(CampaignSpec.from_toml(text))
     assert [s["altitude"] for s in scenarios] == [v["altitude"] for v in a]
     assert len(tasks) == 5
+
+
+def test_trajectories_only_when_asked(tmp_path):
+    """With ``trajectories = true`` each task also saves its positions, equal to simulate's."""
+    text = 'base = "paper"\nbatch_size = 2\ntrajectories = true\n[seeds]\ncount = 3\n'
+    run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+    files = sorted(tmp_path.glob("runs/*/*.npz"))
+    assert len(files) == 2
+    with np.load(files[-1]) as data:
+        positions = data["positions"]
+    single = simulate(load_scenario("paper"), seed=2)
+    np.testing.assert_array_equal(positions[0], single.positions[0])
+    run_campaign(CampaignSpec.from_toml(text.replace("true", "false")), tmp_path / "b")
+    assert not list((tmp_path / "b").glob("runs/*/*.npz"))

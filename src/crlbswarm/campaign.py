@@ -369,6 +369,8 @@ def run_campaign(
                     v, a, b = futures[future]
                     result = future.result()
                     path = _part_path(folder, v, a, b)
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    # The Parquet part is written last: its presence marks the task done.
                     if spec.trajectories:
                         with atomic_path(path.with_suffix(".npz")) as tmp:
                             np.savez(tmp, positions=result["positions"])
