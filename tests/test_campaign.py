@@ -73,6 +73,11 @@ def test_local_cluster_with_two_workers_matches_a_direct_batch(tmp_path):
     assert run_campaign(spec, tmp_path, n_workers=2)["skipped"] == 6
 
 
+def finished_parts(out: Path) -> list[Path]:
+    """Finished task files (pathlib's ``*`` also matches hidden temporaries: skip them)."""
+    return [p for p in out.glob("runs/*/*.parquet") if not p.name.startswith(".")]
+
+
 def _wait_for(path: Path, timeout: float) -> None:
     deadline = time.monotonic() + timeout
     while not path.exists():
@@ -132,14 +137,14 @@ def test_killed_campaign_resumes_to_the_same_dataset(tmp_path):
                             start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + 120
-        while len(list(out.glob("runs/*/*.parquet"))) < 3:
+        while len(finished_parts(out)) < 3:
             assert proc.poll() is None, "the campaign ended before it could be interrupted"
             assert time.monotonic() < deadline, "no task finished within 120 s"
             time.sleep(0.1)
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
-    finished = len(list(out.glob("runs/*/*.parquet")))
+    finished = len(finished_parts(out))
     assert 3 <= finished < 40
     # A file being written at the kill stays a hidden temporary (.part-...), which Parquet
     # readers skip; the resumed run removes it.
