@@ -224,3 +224,19 @@ def test_trajectories_only_when_asked(tmp_path):
     np.testing.assert_array_equal(positions[0], single.positions[0])
     run_campaign(CampaignSpec.from_toml(text.replace("true", "false")), tmp_path / "b")
     assert not list((tmp_path / "b").glob("runs/*/*.npz"))
+
+
+def test_a_folder_of_another_campaign_is_refused(tmp_path):
+    """Resuming into a folder that holds a different campaign would mix two datasets."""
+    run_campaign(CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n'), tmp_path)
+    other = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 2\n')
+    with pytest.raises(ScenarioError, match=r"^out: .*different campaign"):
+        run_campaign(other, tmp_path)
+    assert len(load_runs(tmp_path)) == 1
+
+
+def test_grid_values_of_mixed_types_are_refused_before_running(tmp_path):
+    text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"name" = ["a", 1]\n'
+    with pytest.raises(ScenarioError):
+        run_campaign(CampaignSpec.from_toml(text), tmp_path / "out")
+    assert not (tmp_path / "out").exists()

@@ -8,7 +8,8 @@ campaign by default, or an existing scheduler.
 
 Output, under the campaign folder:
 
-* ``spec.toml``: the spec, as given;
+* ``spec.toml``: the spec, as given, and ``spec.json``: its canonical form (a folder holding
+  another campaign's results is refused);
 * ``variants.parquet``: one row per variant, its id and the value of every changed field;
 * ``runs/variant=<id>/part-<first seed>-<last seed>.parquet``: one file per finished task,
   one row per run: the variant id, the seed, the changed fields and the per-run metrics of
@@ -332,14 +333,27 @@ def run_campaign(
     folder = Path(out)
     scenarios, tasks = plan_tasks(spec)  # validate everything before anything runs
     variants = spec.variants()
+    rows = {"variant": list(range(len(variants)))}
+    for name in sorted({k for v in variants for k in v}):
+        rows[name] = [v.get(name) for v in variants]
+    try:
+        table = pa.table(rows)
+    except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+        raise ScenarioError(f"grid: the values of a field must share one type ({exc})") from None
+    # Resuming is only meaningful into the same campaign: refuse a folder holding another.
+    canonical = spec.model_dump_json()
+    marker = folder / "spec.json"
+    if marker.exists() and marker.read_text(encoding="utf-8") != canonical:
+        raise ScenarioError(
+            f"out: {str(folder)!r} holds the results of a different campaign (its spec.json "
+            "differs); use another folder"
+        )
     folder.mkdir(parents=True, exist_ok=True)
+    write_text(marker, canonical)
     if spec_text is not None:
         write_text(folder / "spec.toml", spec_text)
-    rows = {"variant": list(range(len(variants)))}
-    for name in {k for v in variants for k in v}:
-        rows[name] = [v.get(name) for v in variants]
     with atomic_path(folder / "variants.parquet") as tmp:
-        pq.write_table(pa.table(rows), tmp)
+        pq.write_table(table, tmp)
 
     # Temporaries of tasks interrupted while being written (hidden files, which Parquet
     # readers skip) are stale: remove them.
@@ -354,7 +368,7 @@ def run_campaign(
         if scheduler is None:
             cluster = LocalCluster(
                 n_workers=n_workers, threads_per_worker=1, processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # any free port: never clash with another cluster
             )  # fmt: skip
         try:
             with Client(scheduler or cluster) as client:

@@ -274,6 +274,7 @@ def format_design(report: dict) -> str:
 #: Library argument names and the CLI options that set them, for error messages.
 _OPTION_NAMES = {
     "seeds": "--runs",
+    "out": "--out",
     "n_uavs": "--uavs",
     "altitude": "--altitude",
     "target_xy": "--target",
@@ -536,10 +537,13 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             bar.total = total
             bar.update(done - bar.n)
 
-        counts = run_campaign(
-            spec, args.out, scheduler=args.scheduler, n_workers=args.workers,
-            spec_text=text, progress=progress,
-        )  # fmt: skip
+        try:
+            counts = run_campaign(
+                spec, args.out, scheduler=args.scheduler, n_workers=args.workers,
+                spec_text=text, progress=progress,
+            )  # fmt: skip
+        except ValueError as exc:
+            raise _as_option_error(exc) from exc
     print(
         f"{counts['tasks']} tasks over {counts['variants']} variants: ran {counts['ran']}, "
         f"skipped {counts['skipped']} already finished; results in {args.out / 'runs'}"
