@@ -216,14 +216,16 @@ def test_trajectories_only_when_asked(tmp_path):
     """With ``trajectories = true`` each task also saves its positions, equal to simulate's."""
     text = 'base = "paper"\nbatch_size = 2\ntrajectories = true\n[seeds]\ncount = 3\n'
     run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
-    files = sorted(tmp_path.glob("runs/*/*.npz"))
+    files = sorted(tmp_path.glob("trajectories/*/*.npz"))
+    # The Parquet dataset holds only Parquet files, so pandas reads it as is.
+    assert len(load_runs(tmp_path)) == 3
     assert len(files) == 2
     with np.load(files[-1]) as data:
         positions = data["positions"]
     single = simulate(load_scenario("paper"), seed=2)
     np.testing.assert_array_equal(positions[0], single.positions[0])
     run_campaign(CampaignSpec.from_toml(text.replace("true", "false")), tmp_path / "b")
-    assert not list((tmp_path / "b").glob("runs/*/*.npz"))
+    assert not (tmp_path / "b" / "trajectories").exists()
 
 
 def test_a_folder_of_another_campaign_is_refused(tmp_path):
@@ -240,3 +242,19 @@ def test_grid_values_of_mixed_types_are_refused_before_running(tmp_path):
     with pytest.raises(ScenarioError):
         run_campaign(CampaignSpec.from_toml(text), tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_int_and_float_grid_values_share_one_column_type(tmp_path):
+    text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"control.cruise_speed" = [2, 2.5]\n'
+    run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+    runs = load_runs(tmp_path)
+    assert runs["control.cruise_speed"].tolist() == [2.0, 2.5]
+
+
+def test_a_failing_task_names_its_variant_and_keeps_finished_ones(tmp_path):
+    """A variant whose runs diverge stops the campaign with one message naming it."""
+    from crlbswarm.campaign import CampaignError
+
+    text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"disturbance.sigma" = [0.01, 1e9]\n'
+    with pytest.raises(CampaignError, match=r"^variant 1 \(disturbance.sigma=1000000000.0\)"):
+        run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)

@@ -7,6 +7,9 @@ Positions are horizontal coordinates in metres, shape ``(..., M, 2)`` (UAVs are 
 every function accepts any leading batch shape. Angles are radians inside the library.
 """
 
+__version__ = "0.1.0"  # defined first: submodules import it
+
+
 from .campaign import CampaignSpec, run_campaign
 from .control import (
     Obstacles,
@@ -79,8 +82,6 @@ from .tracking import (
     summed_range_information,
     target_trajectories,
 )
-
-__version__ = "0.1.0"
 
 __all__ = [
     "BUILTIN_SCENARIOS",

@@ -18,14 +18,20 @@ Output, under the campaign folder:
 
 Every file is written atomically (temporary name, then rename), and a task's file exists
 only once the task has finished, so re-running the same command resumes: finished tasks are
-skipped, and an interrupted campaign loses only the tasks in flight. Tasks whose worker dies
-are retried by Dask (``retries``).
+skipped, and an interrupted campaign loses only the tasks in flight. A task whose worker dies
+is rescheduled by Dask (up to ``distributed.scheduler.allowed-failures`` times, 3 by
+default); a task that fails (for example a diverged run) stops the campaign with one line
+naming the variant and the seeds, keeping every finished task. With ``trajectories = true``
+each task's positions go to ``trajectories/variant=<id>/part-<first>-<last>.npz``.
 """
 
 from __future__ import annotations
 
 import copy
+import hashlib
 import itertools
+import json
+import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -34,6 +40,7 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from . import __version__
 from .output import atomic_path, write_text
 from .scenario import _BUILTINS, Scenario, ScenarioError, _describe
 
@@ -42,10 +49,11 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["CampaignSpec", "plan_tasks", "run_campaign", "run_task"]
+__all__ = ["CampaignError", "CampaignSpec", "plan_tasks", "run_campaign", "run_task"]
 
-#: Times a task is retried when its worker dies.
-RETRIES = 3
+
+class CampaignError(RuntimeError):
+    """A task failed on a worker; the message names the variant and the seeds."""
 
 
 class _Model(BaseModel):
@@ -281,14 +289,18 @@ def _part_path(out: Path, variant: int, first: int, last: int) -> Path:
     return out / "runs" / f"variant={variant:05d}" / f"part-{first:012d}-{last:012d}.parquet"
 
 
-def _write_part(path: Path, columns: dict[str, np.ndarray], changes: dict[str, Any]) -> None:
+def _write_part(
+    path: Path, columns: dict[str, np.ndarray], changes: dict[str, Any], schema: Any
+) -> None:
+    """One task's rows; a changed field gets the type of its ``variants.parquet`` column, so
+    every part of the dataset agrees (a grid [2, 3.0] is double everywhere)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     n = len(columns["seed"])
     table = {name: values for name, values in columns.items() if name != "variant"}
     for field, value in changes.items():
-        table[field] = [value] * n
+        table[field] = pa.array([value] * n, type=schema.field(field).type)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         pq.write_table(pa.table(table), tmp)
@@ -340,8 +352,13 @@ def run_campaign(
         table = pa.table(rows)
     except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
         raise ScenarioError(f"grid: the values of a field must share one type ({exc})") from None
-    # Resuming is only meaningful into the same campaign: refuse a folder holding another.
-    canonical = spec.model_dump_json()
+    # Resuming is only meaningful into the same campaign: refuse a folder holding another
+    # (the spec and the resolved base scenario, so an edited base file counts as different).
+    canonical = json.dumps(
+        {"spec": spec.model_dump(), "base": spec.base_dict(), "crlbswarm": __version__},
+        sort_keys=True,
+    )
+    digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]
     marker = folder / "spec.json"
     if marker.exists() and marker.read_text(encoding="utf-8") != canonical:
         raise ScenarioError(
@@ -357,7 +374,7 @@ def run_campaign(
 
     # Temporaries of tasks interrupted while being written (hidden files, which Parquet
     # readers skip) are stale: remove them.
-    for stale in folder.glob("runs/*/.part-*"):
+    for stale in [*folder.glob("runs/*/.part-*"), *folder.glob("trajectories/*/.part-*")]:
         stale.unlink(missing_ok=True)
     todo = [t for t in tasks if not _part_path(folder, *t).exists()]
     done = len(tasks) - len(todo)
@@ -369,26 +386,41 @@ def run_campaign(
             cluster = LocalCluster(
                 n_workers=n_workers, threads_per_worker=1, processes=True,
                 dashboard_address=":0",  # any free port: never clash with another cluster
+                silence_logs=logging.CRITICAL,  # failures are reported once, by this process
             )  # fmt: skip
         try:
             with Client(scheduler or cluster) as client:
+                # Deterministic failures are not retried (they would fail again); a task whose
+                # worker dies is rescheduled by Dask (distributed.scheduler.allowed-failures).
                 futures = {
                     client.submit(
                         run_task, scenarios[v], v, a, b, spec.trajectories,
-                        key=f"crlbswarm-task-{v}-{a}-{b}", retries=RETRIES, pure=False,
+                        key=f"crlbswarm-{digest}-{v}-{a}-{b}", retries=0, pure=False,
                     ): (v, a, b)
                     for v, a, b in todo
                 }  # fmt: skip
                 for future in as_completed(futures):
-                    v, a, b = futures[future]
-                    result = future.result()
+                    v, a, b = futures.pop(future)
+                    try:
+                        result = future.result()
+                    except (ValueError, RuntimeError) as exc:
+                        raise CampaignError(
+                            f"variant {v} ({_label(variants[v])}), seeds {a}..{b}: {exc}"
+                        ) from None
+                    except Exception as exc:  # e.g. distributed.KilledWorker
+                        raise CampaignError(
+                            f"variant {v}, seeds {a}..{b}: {type(exc).__name__}: {exc}"
+                        ) from None
+                    future.release()  # do not keep finished results on the workers
                     path = _part_path(folder, v, a, b)
-                    path.parent.mkdir(parents=True, exist_ok=True)
                     # The Parquet part is written last: its presence marks the task done.
                     if spec.trajectories:
-                        with atomic_path(path.with_suffix(".npz")) as tmp:
+                        npz = folder / "trajectories" / path.parent.name / f"{path.stem}.npz"
+                        npz.parent.mkdir(parents=True, exist_ok=True)
+                        with atomic_path(npz) as tmp:
                             np.savez(tmp, positions=result["positions"])
-                    _write_part(path, result["columns"], variants[v])
+                    _write_part(path, result["columns"], variants[v], table.schema)
+                    del result
                     done += 1
                     if progress is not None:
                         progress(done, len(tasks))

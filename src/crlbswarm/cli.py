@@ -527,6 +527,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"SPEC: cannot read {str(args.spec)!r}: {exc}") from exc
     spec = CampaignSpec.from_toml(text, source=str(args.spec))
+    if not Path(spec.base).is_absolute() and (args.spec.parent / spec.base).is_file():
+        # A relative base scenario path is read relative to the spec file.
+        spec = spec.model_copy(update={"base": str(args.spec.parent / spec.base)})
     plan_tasks(spec)  # every variant validated before anything runs or is written
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers: must be >= 1, got {args.workers}")
@@ -534,8 +537,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     with tqdm(unit="task", disable=None, file=sys.stderr) as bar:
 
         def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
+            if bar.total != total:  # first call: total known, finished tasks not timed
+                bar.reset(total=total)
+                bar.update(done)
+                bar.refresh()
+            else:
+                bar.update(done - bar.n)
 
         try:
             counts = run_campaign(
@@ -571,6 +578,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, UsageError, SimulationDivergedError) as exc:
         print(f"crlbswarm: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except RuntimeError as exc:  # a campaign task failed on a worker (CampaignError)
+        print(f"crlbswarm: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("crlbswarm: interrupted (finished work is kept; re-run to resume)", file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # The reader (e.g. ``| head``) went away: not an error of ours; silence the flush.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
