@@ -258,3 +258,18 @@ def test_a_failing_task_names_its_variant_and_keeps_finished_ones(tmp_path):
     text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"disturbance.sigma" = [0.01, 1e9]\n'
     with pytest.raises(CampaignError, match=r"^variant 1 \(disturbance.sigma=1000000000.0\)"):
         run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+
+
+def test_a_worker_that_dies_has_its_task_rescheduled(tmp_path, monkeypatch):
+    """The first task kills its own worker process (fault injection); the nanny restarts it,
+    the scheduler reschedules the task, and the dataset is complete and correct."""
+    from crlbswarm.campaign import FAULT_ENV
+
+    marker = tmp_path / "killed-once"
+    monkeypatch.setenv(FAULT_ENV, str(marker))
+    spec = CampaignSpec.from_toml(SPEC)
+    run_campaign(spec, tmp_path / "out", n_workers=2)
+    assert marker.exists()  # a worker did die
+    monkeypatch.delenv(FAULT_ENV)
+    expected = direct(spec)
+    assert_same(load_runs(tmp_path / "out")[expected.columns], expected)
