@@ -113,8 +113,8 @@ class UavsConfig(_Model):
     def _region_ordered(cls, region: list[list[float]] | None) -> list[list[float]] | None:
         if region is not None:
             (x0, x1), (y0, y1) = region
-            if not all(map(math.isfinite, (x0, x1, y0, y1))) or x0 > x1 or y0 > y1:
-                raise ValueError("must be finite with x_min <= x_max and y_min <= y_max")
+            if x0 > x1 or y0 > y1:  # (finiteness: checked by the Pair type)
+                raise ValueError("need x_min <= x_max and y_min <= y_max")
         return region
 
     @field_validator("start")
@@ -126,8 +126,6 @@ class UavsConfig(_Model):
             count = info.data.get("count")
             if count is not None and len(start) != count:
                 raise ValueError(f"has {len(start)} positions but count is {count}")
-            if not np.all(np.isfinite(start)):
-                raise ValueError("positions must be finite")
         return start
 
     @model_validator(mode="after")
@@ -242,8 +240,6 @@ class RectangleObstacle(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> RectangleObstacle:
-        if not np.all(np.isfinite([*self.x, *self.y])):
-            raise ValueError("bounds must be finite")
         if self.x[0] >= self.x[1] or self.y[0] >= self.y[1]:
             raise ValueError("need x_min < x_max and y_min < y_max")
         return self
@@ -255,12 +251,6 @@ class CircleObstacle(_Model):
     type: Literal["circle"]
     center: Pair = Field(description="[x, y], m")
     radius: PositiveFloat = Field(description="m")
-
-    @model_validator(mode="after")
-    def _check(self) -> CircleObstacle:
-        if not np.all(np.isfinite(self.center)):
-            raise ValueError("center must be finite")
-        return self
 
 
 Obstacle = Annotated[RectangleObstacle | CircleObstacle, Field(discriminator="type")]
@@ -391,8 +381,6 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _check_scene(self) -> Scenario:
-        if not np.all(np.isfinite(self.target)):
-            raise _FieldError("target", "must be finite")
         obstacles = self.obstacle_set
         _check_outside(obstacles, np.asarray(self.target)[None], "target")
         if self.uavs.start is not None:
