@@ -283,6 +283,7 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         return terms(x, q[idx], d_hat[idx], h2[idx], a[idx] if per else a, w[idx])
 
     every = np.arange(n)
+    centroid = q.mean(axis=1)  # fixed: the convergence scale needs it every iteration
     cost, grad, hxx, hyy, hxy, htr = at(s, every)
     mu = np.full(n, 1e-3)
     active = np.ones(n, dtype=bool)
@@ -328,7 +329,7 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         rej = idx[~better]
         mu[rej] = mu[rej] * 10.0
         step_len = np.hypot(step[:, 0], step[:, 1])
-        scale = 1.0 + np.hypot(*(s[idx] - q[idx].mean(axis=1)).T)
+        scale = 1.0 + np.hypot(*(s[idx] - centroid[idx]).T)
         # Converged when the nearly undamped Newton step is negligible, accepted or not (at
         # that size the change of the cost is below its rounding error). A heavily damped
         # step is short whatever the distance to the minimum, so it never counts.

@@ -282,6 +282,8 @@ def _mission(
     ranges = np.empty(m_uavs)
     x = x0.copy()
     p_cov = p0.copy()
+    x_new = np.empty(4)  # prediction work arrays, reused every step
+    fp = np.empty((4, 4))
     eta_step = g.eta_rate * dt
     h2 = g.altitude * g.altitude
     for k in range(k_steps + 1):
@@ -352,11 +354,11 @@ def _mission(
             eta_out[k + 1] = 1.0
         # Prediction of the target estimate with the target's motion model.
         if g.estimate:
-            x_new = np.zeros(4)
+            x_new[:] = 0.0
             for r in range(n):
                 for c in range(n):
                     x_new[r] += f_mat[r, c] * x[c]
-            fp = np.zeros((4, 4))
+            fp[:, :] = 0.0
             for r in range(n):
                 for c in range(n):
                     for j in range(n):

@@ -152,7 +152,7 @@ def target_trajectories(
     """
     f, _, _ = motion_matrices(model, dt, turn_rate, acceleration_noise)
     g = _noise_gain(dt)
-    k_steps = _v.count(n_steps, "n_steps", 0)
+    n_steps = _v.count(n_steps, "n_steps", 0)
     if model == "static" and acceleration_noise > 0:
         raise ValueError("acceleration_noise: a static target takes no acceleration noise")
     if acceleration_noise > 0 and not all(isinstance(r, np.random.Generator) for r in rngs):
@@ -161,7 +161,6 @@ def target_trajectories(
     vel = _v.point(velocity, "velocity")
     if start.shape != (2,) or vel.shape != (2,):
         raise ValueError("start_xy, velocity: expected shape (2,) each")
-    n_steps = k_steps
     out = np.empty((len(rngs), n_steps + 1, 4))
     out[:, 0, :2] = start
     out[:, 0, 2:] = vel if model != "static" else 0.0
