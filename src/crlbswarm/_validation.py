@@ -11,6 +11,8 @@ import numbers
 
 import numpy as np
 
+from .errors import FieldError
+
 __all__: list[str] = []
 
 
@@ -19,14 +21,14 @@ def as_float_array(value: object, name: str) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected numbers, got {value!r}") from exc
+        raise FieldError(name, f"expected numbers, got {value!r}") from exc
     return arr
 
 
 def check_finite(arr: np.ndarray, name: str) -> np.ndarray:
     """Raise if ``arr`` holds NaN or infinity."""
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: must be finite (found NaN or inf)")
+        raise FieldError(name, "must be finite (found NaN or inf)")
     return arr
 
 
@@ -34,9 +36,9 @@ def positions(value: object, name: str) -> np.ndarray:
     """Check an array of planar positions of shape ``(..., M, 2)``."""
     arr = as_float_array(value, name)
     if arr.ndim < 2 or arr.shape[-1] != 2:
-        raise ValueError(f"{name}: expected shape (..., M, 2), got {arr.shape}")
+        raise FieldError(name, f"expected shape (..., M, 2), got {arr.shape}")
     if arr.shape[-2] < 1:
-        raise ValueError(f"{name}: needs at least one UAV, got shape {arr.shape}")
+        raise FieldError(name, f"needs at least one UAV, got shape {arr.shape}")
     return check_finite(arr, name)
 
 
@@ -44,7 +46,7 @@ def point(value: object, name: str) -> np.ndarray:
     """Check a planar point (or batch of points) of shape ``(..., 2)``."""
     arr = as_float_array(value, name)
     if arr.ndim < 1 or arr.shape[-1] != 2:
-        raise ValueError(f"{name}: expected shape (..., 2), got {arr.shape}")
+        raise FieldError(name, f"expected shape (..., 2), got {arr.shape}")
     return check_finite(arr, name)
 
 
@@ -53,7 +55,7 @@ def positive(value: object, name: str) -> np.ndarray:
     arr = as_float_array(value, name)
     check_finite(arr, name)
     if not np.all(arr > 0):
-        raise ValueError(f"{name}: must be > 0, got {value!r}")
+        raise FieldError(name, f"must be > 0, got {value!r}")
     return arr
 
 
@@ -65,9 +67,9 @@ def finite(value: object, name: str) -> np.ndarray:
 def count(value: object, name: str, minimum: int) -> int:
     """Check an integer count of at least ``minimum``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ValueError(f"{name}: expected an integer, got {value!r}")
+        raise FieldError(name, f"expected an integer, got {value!r}")
     if value < minimum:
-        raise ValueError(f"{name}: must be at least {minimum}, got {value}")
+        raise FieldError(name, f"must be at least {minimum}, got {value}")
     return int(value)
 
 
@@ -76,8 +78,8 @@ def broadcast(name: str, *shapes: tuple[int, ...]) -> tuple[int, ...]:
     try:
         return np.broadcast_shapes(*shapes)
     except ValueError as exc:
-        raise ValueError(
-            f"{name}: shapes {', '.join(str(s) for s in shapes)} do not broadcast"
+        raise FieldError(
+            f"{name}", f"shapes {', '.join(str(s) for s in shapes)} do not broadcast"
         ) from exc
 
 
@@ -85,5 +87,5 @@ def scalar(value: object, name: str) -> float:
     """Check a single finite number."""
     arr = finite(value, name)
     if arr.ndim != 0:
-        raise ValueError(f"{name}: expected a single number, got shape {arr.shape}")
+        raise FieldError(name, f"expected a single number, got shape {arr.shape}")
     return float(arr)

@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 
 from . import _validation as _v
+from .errors import FieldError
 from .graphs import Adjacency
 
 __all__ = [
@@ -65,14 +66,14 @@ def _rows(value: object, name: str, width: int) -> np.ndarray:
     if arr.size == 0:
         return np.empty((0, width))
     if arr.ndim != 2 or arr.shape[1] != width:
-        raise ValueError(f"{name}: expected shape (n, {width}), got {arr.shape}")
+        raise FieldError(name, f"expected shape (n, {width}), got {arr.shape}")
     return _v.check_finite(arr, name)
 
 
 def _check_obstacles(obstacles: object) -> Obstacles:
     if not isinstance(obstacles, Obstacles):
-        raise ValueError(
-            f"obstacles: expected a crlbswarm.Obstacles, got {type(obstacles).__name__}"
+        raise FieldError(
+            "obstacles", f"expected a crlbswarm.Obstacles, got {type(obstacles).__name__}"
         )
     return obstacles
 
@@ -97,9 +98,9 @@ class Obstacles:
         rects = _rows(rectangles, "rectangles", 4)
         circs = _rows(circles, "circles", 3)
         if np.any(rects[:, 0] >= rects[:, 1]) or np.any(rects[:, 2] >= rects[:, 3]):
-            raise ValueError("rectangles: need x_min < x_max and y_min < y_max")
+            raise FieldError("rectangles", "need x_min < x_max and y_min < y_max")
         if np.any(circs[:, 2] <= 0):
-            raise ValueError("circles: radius must be > 0")
+            raise FieldError("circles", "radius must be > 0")
         for name, arr in (("rectangles", rects), ("circles", circs)):
             arr = np.ascontiguousarray(arr, dtype=np.float64).copy()
             arr.flags.writeable = False
@@ -369,13 +370,13 @@ def _flat(arr: np.ndarray, batch: tuple[int, ...], tail: tuple[int, ...]) -> np.
 
 def _formation_arrays(q: object, name: str, adjacency: Adjacency) -> np.ndarray:
     if not isinstance(adjacency, Adjacency):
-        raise ValueError(
-            f"adjacency: expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
+        raise FieldError(
+            "adjacency", f"expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
         )
     arr = _v.positions(q, name)
     if arr.shape[-2] != adjacency.n_nodes:
-        raise ValueError(
-            f"{name}: has {arr.shape[-2]} UAVs but the graph has {adjacency.n_nodes} nodes"
+        raise FieldError(
+            f"{name}", f"has {arr.shape[-2]} UAVs but the graph has {adjacency.n_nodes} nodes"
         )
     return arr
 
@@ -383,14 +384,14 @@ def _formation_arrays(q: object, name: str, adjacency: Adjacency) -> np.ndarray:
 def _slot_offsets(delta: object, adjacency: Adjacency) -> np.ndarray:
     d = _formation_arrays(delta, "delta", adjacency)
     if d.ndim != 2:
-        raise ValueError(f"delta: expected shape (M, 2), got {d.shape}")
+        raise FieldError("delta", f"expected shape (M, 2), got {d.shape}")
     return np.ascontiguousarray(d)
 
 
 def _scale(eta: object, name: str) -> np.ndarray:
     e = _v.finite(eta, name)
     if np.any((e <= 0) | (e > 1)):
-        raise ValueError(f"{name}: must lie in (0, 1], got {eta!r}")
+        raise FieldError(name, f"must lie in (0, 1], got {eta!r}")
     return e
 
 
@@ -401,7 +402,7 @@ def _is_inf(value: object) -> bool:
 def _check_leader(leader: int, n: int) -> int:
     lead = _v.count(leader, "leader", 0)
     if lead >= n:
-        raise ValueError(f"leader: must be a UAV index below {n}, got {lead}")
+        raise FieldError("leader", f"must be a UAV index below {n}, got {lead}")
     return lead
 
 
@@ -515,11 +516,11 @@ def leader_guidance(
     vc = float(_v.positive(cruise_speed, "cruise_speed"))
     rho = float(_v.finite(footprint, "footprint"))
     if rho < 0:
-        raise ValueError(f"footprint: must be >= 0, got {footprint!r}")
+        raise FieldError("footprint", f"must be >= 0, got {footprint!r}")
     obs = _check_obstacles(obstacles) if obstacles is not None else Obstacles()
     c = q if center_xy is None else _v.point(center_xy, "center_xy")
     if rho > 0 and (center_xy is None or obstacles is None):
-        raise ValueError("footprint: steering needs center_xy and obstacles")
+        raise FieldError("footprint", "steering needs center_xy and obstacles")
     e_r = float(_v.positive(repulsion_gain, "repulsion_gain"))
     l_safe = float(_v.positive(safety_radius, "safety_radius"))
     step = float(_v.positive(dt, "dt"))
@@ -642,7 +643,7 @@ def repulsion(
     l_safe = float(_v.positive(safety_radius, "safety_radius"))
     cap = _v.scalar(max_step, "max_step") if not _is_inf(max_step) else math.inf
     if not cap > 0:
-        raise ValueError(f"max_step: must be > 0 (inf for no cap), got {max_step!r}")
+        raise FieldError("max_step", f"must be > 0 (inf for no cap), got {max_step!r}")
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty_like(qb)
     obs = _check_obstacles(obstacles)
@@ -714,7 +715,7 @@ def eta_target(
     look = float(_v.positive(lookahead, "lookahead"))
     lo = float(_v.positive(eta_min, "eta_min"))
     if lo > 1.0:
-        raise ValueError(f"eta_min: must lie in (0, 1], got {eta_min!r}")
+        raise FieldError("eta_min", f"must lie in (0, 1], got {eta_min!r}")
     n = _v.count(n_samples, "n_samples", 2)
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 from .geometry import regular_polygon
 from .radar import Radar
 
@@ -74,7 +75,7 @@ def information_weight(
     """
     phi = _v.finite(elevation, "elevation")
     if np.any((phi < 0) | (phi > 0.5 * np.pi)):
-        raise ValueError("elevation: must lie in [0, pi/2] rad")
+        raise FieldError("elevation", "must lie in [0, pi/2] rad")
     h = _v.positive(altitude, "altitude")
     a = radar.snr_constant
     _v.broadcast("radar", np.shape(a), _v.broadcast("altitude", phi.shape, h.shape))
@@ -153,7 +154,7 @@ def _optimal_weights(n_uavs: object, altitude: object, radar: Radar) -> np.ndarr
     """Optimal :math:`w^*_m`, shape ``(..., M)`` for altitude of shape ``(...)``."""
     n = _v.count(n_uavs, "n_uavs", _MIN_UAVS)
     if radar.n_uavs is not None and radar.n_uavs != n:
-        raise ValueError(f"radar: per-UAV fields have length {radar.n_uavs} but n_uavs is {n}")
+        raise FieldError("radar", f"per-UAV fields have length {radar.n_uavs} but n_uavs is {n}")
     h = _v.positive(altitude, "altitude")[..., None]
     w = information_weight(optimal_elevation(h, radar), h, radar)
     return np.broadcast_to(w, (*w.shape[:-1], n))
@@ -239,12 +240,15 @@ def optimal_formation(
     n = _v.count(n_uavs, "n_uavs", _MIN_UAVS)
     if radar.n_uavs is not None:
         if radar.n_uavs != n:
-            raise ValueError(f"radar: per-UAV fields have length {radar.n_uavs} but n_uavs is {n}")
+            raise FieldError(
+                "radar", f"per-UAV fields have length {radar.n_uavs} but n_uavs is {n}"
+            )
         a = np.asarray(radar.snr_constant)
         if not np.allclose(a, a[0], rtol=1e-12, atol=0.0):
-            raise ValueError(
-                "radar: per-UAV fields give unequal A = p G_p beta0 / (kappa sigma0^2); "
-                "the regular polygon is optimal only for equal A"
+            raise FieldError(
+                "radar",
+                "per-UAV fields give unequal A = p G_p beta0 / (kappa sigma0^2); "
+                "the regular polygon is optimal only for equal A",
             )
         radar = Radar(**{k: float(np.ravel(v)[0]) for k, v in radar.to_dict().items()})
     target = _v.point(target_xy, "target_xy")

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 from .fisher import _check_radar
 from .geometry import check_scene, target_offsets
 from .radar import Radar
@@ -56,8 +57,8 @@ _DEFAULT_RADAR = Radar()
 def _ranges_array(measured_ranges: object, n_uavs: int) -> np.ndarray:
     d = _v.as_float_array(measured_ranges, "measured_ranges")
     if d.ndim < 1 or d.shape[-1] != n_uavs:
-        raise ValueError(
-            f"measured_ranges: expected shape (..., {n_uavs}) to match uav_xy, got {d.shape}"
+        raise FieldError(
+            "measured_ranges", f"expected shape (..., {n_uavs}) to match uav_xy, got {d.shape}"
         )
     return _v.check_finite(d, "measured_ranges")
 
@@ -93,7 +94,7 @@ def measure_ranges(
         Measured ranges, m (may be negative with vanishing probability at very low SNR).
     """
     if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+        raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
     q, s, h = check_scene(uav_xy, target_xy, altitude)
     a = _check_radar(radar, q.shape[-2])
     diff = target_offsets(q, s)
@@ -168,8 +169,8 @@ def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: objec
     """
     q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
     if q.shape[-2] < 3:
-        raise ValueError(
-            f"uav_xy: the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
+        raise FieldError(
+            "uav_xy", f"the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
         )
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     # Singular systems (collinear UAVs) and absurd ranges fall back to the centroid; the
@@ -396,7 +397,7 @@ def estimate_target(
     n_iter = _v.count(max_iter, "max_iter", 1)
     tolerance = _v.scalar(tol, "tol")
     if not tolerance > 0:
-        raise ValueError(f"tol: must be > 0, got {tol!r}")
+        raise FieldError("tol", f"must be > 0, got {tol!r}")
     s0 = linearised_estimate(q, d_hat, h) if init is None else _v.point(init, "init")
     # Absurd inputs (ranges whose squares overflow) make the costs infinite: every step is
     # then rejected and the trial is reported as failed, without a warning.

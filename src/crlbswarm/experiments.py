@@ -14,6 +14,7 @@ import numpy as np
 
 from . import _validation as _v
 from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
+from .errors import FieldError
 from .fisher import crlb
 from .formations import (
     arc_formation,
@@ -142,16 +143,16 @@ def _formations_over_altitude(
     """
     h = _v.positive(altitudes, "altitudes")
     if h.ndim != 1:
-        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
+        raise FieldError("altitudes", f"expected a 1-D array, got shape {h.shape}")
     if radar.per_uav:
-        raise ValueError("radar: the altitude sweeps need scalar radar fields")
+        raise FieldError("radar", "the altitude sweeps need scalar radar fields")
     if _v.scalar(disc_factor, "disc_factor") <= 0:
-        raise ValueError(f"disc_factor: must be > 0, got {disc_factor!r}")
+        raise FieldError("disc_factor", f"must be > 0, got {disc_factor!r}")
     if _v.scalar(fixed_radius, "fixed_radius") <= 0:
-        raise ValueError(f"fixed_radius: must be > 0, got {fixed_radius!r}")
+        raise FieldError("fixed_radius", f"must be > 0, got {fixed_radius!r}")
     span = _v.scalar(arc_span, "arc_span")
     if not 0.0 < span <= np.pi:
-        raise ValueError(f"arc_span: must lie in (0, pi], got {arc_span!r}")
+        raise FieldError("arc_span", f"must lie in (0, pi], got {arc_span!r}")
     _v.count(n_random, "n_random", 1)
     _v.count(seed, "seed", 0)
     h = h.copy()  # results must not share memory with the caller's array
@@ -260,9 +261,9 @@ def optimal_elevation_curve(
         altitudes = np.geomspace(1.0, 2.0e4, 241)
     h = _v.positive(altitudes, "altitudes")
     if h.ndim != 1:
-        raise ValueError(f"altitudes: expected a 1-D array, got shape {h.shape}")
+        raise FieldError("altitudes", f"expected a 1-D array, got shape {h.shape}")
     if radar.per_uav:
-        raise ValueError("radar: optimal_elevation_curve needs scalar radar fields")
+        raise FieldError("radar", "optimal_elevation_curve needs scalar radar fields")
     h = h.copy()  # the result must not share memory with the caller's array
     return ElevationCurve(
         altitude=h,

@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 from .geometry import check_scene
 from .radar import Radar
 
@@ -86,10 +87,10 @@ def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.nda
 
 def _check_radar(radar: Radar, n_uavs: int) -> np.ndarray | float:
     if not isinstance(radar, Radar):
-        raise ValueError(f"radar: expected a crlbswarm.Radar, got {type(radar).__name__}")
+        raise FieldError("radar", f"expected a crlbswarm.Radar, got {type(radar).__name__}")
     if radar.n_uavs is not None and radar.n_uavs != n_uavs:
-        raise ValueError(
-            f"radar: per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
+        raise FieldError(
+            "radar", f"per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
         )
     return radar.snr_constant
 
@@ -209,7 +210,7 @@ def _e_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarra
 def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     j = _v.as_float_array(fim, "fim")
     if j.ndim < 2 or j.shape[-2:] != (2, 2):
-        raise ValueError(f"fim: expected shape (..., 2, 2), got {j.shape}")
+        raise FieldError("fim", f"expected shape (..., 2, 2), got {j.shape}")
     _v.check_finite(j, "fim")
     jxx, jyy = j[..., 0, 0], j[..., 1, 1]
     jxy = 0.5 * (j[..., 0, 1] + j[..., 1, 0])
@@ -217,7 +218,7 @@ def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     asym = np.abs(j[..., 0, 1] - j[..., 1, 0]) > 1e-9 * scale
     not_psd = (jxx < 0) | (jyy < 0) | (jxx * jyy - jxy * jxy < -1e-9 * scale * scale)
     if np.any(asym) or np.any(not_psd):
-        raise ValueError("fim: must be symmetric positive semi-definite")
+        raise FieldError("fim", "must be symmetric positive semi-definite")
     return jxx, jyy, jxy
 
 

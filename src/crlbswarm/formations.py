@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 from .geometry import regular_polygon
 
 __all__ = [
@@ -99,7 +100,7 @@ def arc_formation(
     r = _v.positive(radius, "radius")
     width = _v.scalar(span, "span")
     if not 0.0 < width <= np.pi:
-        raise ValueError(f"span: must lie in (0, pi], got {span!r}")
+        raise FieldError("span", f"must lie in (0, pi], got {span!r}")
     theta = _v.scalar(heading, "heading") + width * (np.arange(n) / (n - 1) - 0.5)
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
     _v.broadcast("radius", s.shape[:-1], r.shape)
@@ -188,7 +189,7 @@ def random_disc_formations(
     s = _v.point(target_xy, "target_xy")
     r = _v.positive(radius, "radius")
     if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+        raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
     _v.broadcast("radius", s.shape[:-1], r.shape)
     rho = np.sqrt(rng.random((k, n)))
     theta = 2.0 * np.pi * rng.random((k, n))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 
 __all__ = ["azimuth_angles", "elevation_angles", "regular_polygon", "slant_ranges"]
 
@@ -136,7 +137,7 @@ def regular_polygon(
     c = _v.point(center_xy, "center_xy")
     r = _v.finite(radius, "radius")
     if np.any(r < 0):
-        raise ValueError(f"radius: must be >= 0, got {radius!r}")
+        raise FieldError("radius", f"must be >= 0, got {radius!r}")
     theta0 = _v.scalar(rotation, "rotation")
     _v.broadcast("radius", c.shape[:-1], r.shape)
     theta = theta0 + 2.0 * np.pi * np.arange(n) / n

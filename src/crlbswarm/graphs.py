@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _validation as _v
+from .errors import FieldError
 
 __all__ = [
     "GRAPH_KINDS",
@@ -74,7 +75,7 @@ class Adjacency:
         """
         n = graph.number_of_nodes()
         if set(graph.nodes) != set(range(n)):
-            raise ValueError("graph: nodes must be the UAV indices 0 .. M-1")
+            raise FieldError("graph", "nodes must be the UAV indices 0 .. M-1")
         matrix = nx.to_scipy_sparse_array(graph, nodelist=range(n), format="csr", dtype=float)
         matrix.sort_indices()
         indptr = matrix.indptr.astype(np.int64)
@@ -165,40 +166,43 @@ def communication_graph(
     elif kind == "star":
         c = _v.count(center, "graph.center", 0)
         if c >= n:
-            raise ValueError(f"graph.center: must be a UAV index below {n}, got {c}")
+            raise FieldError("graph.center", f"must be a UAV index below {n}, got {c}")
         graph = nx.relabel_nodes(nx.star_graph(n - 1), lambda i: (i + c) % n)
     elif kind == "random_geometric":
         if radius is None or seed is None:
-            raise ValueError("graph: random_geometric needs 'radius' and 'seed'")
+            raise FieldError("graph", "random_geometric needs 'radius' and 'seed'")
         r = _v.scalar(radius, "graph.radius")
         if not r > 0.0:
-            raise ValueError(f"graph.radius: must be > 0, got {radius!r}")
+            raise FieldError("graph.radius", f"must be > 0, got {radius!r}")
         graph = nx.random_geometric_graph(n, r, seed=_v.count(seed, "graph.seed", 0))
         graph = nx.Graph(graph.edges)
         graph.add_nodes_from(range(n))
     elif kind == "edges":
         if edges is None:
-            raise ValueError("graph.edges: kind 'edges' needs an explicit edge list")
+            raise FieldError("graph.edges", "kind 'edges' needs an explicit edge list")
         graph = nx.Graph()
         graph.add_nodes_from(range(n))
         for i, edge in enumerate(edges):
             if len(edge) != 2:
-                raise ValueError(f"graph.edges[{i}]: expected a pair [m, p], got {edge!r}")
+                raise FieldError(f"graph.edges[{i}]", f"expected a pair [m, p], got {edge!r}")
             if not all(isinstance(x, numbers.Integral) and not isinstance(x, bool) for x in edge):
-                raise ValueError(f"graph.edges[{i}]: UAV indices must be integers, got {edge!r}")
+                raise FieldError(
+                    f"graph.edges[{i}]", f"UAV indices must be integers, got {edge!r}"
+                )
             m, p = (int(x) for x in edge)
             if not (0 <= m < n and 0 <= p < n):
-                raise ValueError(f"graph.edges[{i}]: UAV index out of range 0..{n - 1}")
+                raise FieldError(f"graph.edges[{i}]", f"UAV index out of range 0..{n - 1}")
             if m == p:
-                raise ValueError(f"graph.edges[{i}]: self-loop on UAV {m}")
+                raise FieldError(f"graph.edges[{i}]", f"self-loop on UAV {m}")
             graph.add_edge(m, p)
     else:
-        raise ValueError(f"graph.kind: expected one of {', '.join(GRAPH_KINDS)}, got {kind!r}")
+        raise FieldError("graph.kind", f"expected one of {', '.join(GRAPH_KINDS)}, got {kind!r}")
     if not nx.is_connected(graph):
         parts = nx.number_connected_components(graph)
-        raise ValueError(
-            f"graph: the {kind} graph on {n} UAVs is disconnected ({parts} components); "
-            "the consensus and formation laws need a connected graph"
+        raise FieldError(
+            "graph",
+            f"the {kind} graph on {n} UAVs is disconnected ({parts} components); "
+            "the consensus and formation laws need a connected graph",
         )
     return graph
 

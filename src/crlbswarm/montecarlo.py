@@ -19,6 +19,7 @@ import numpy as np
 
 from . import _validation as _v
 from .design import optimal_radius
+from .errors import FieldError
 from .estimation import estimate_target, measure_ranges
 from .experiments import FORMATION_LABELS, _formations_over_altitude
 from .fisher import crlb
@@ -136,10 +137,10 @@ def monte_carlo_mse(
     """
     q = _v.positions(uav_xy, "uav_xy")
     if q.ndim != 2:
-        raise ValueError(f"uav_xy: expected one formation of shape (M, 2), got {q.shape}")
+        raise FieldError("uav_xy", f"expected one formation of shape (M, 2), got {q.shape}")
     s = _v.point(target_xy, "target_xy")
     if s.shape != (2,):
-        raise ValueError(f"target_xy: expected shape (2,), got {s.shape}")
+        raise FieldError("target_xy", f"expected shape (2,), got {s.shape}")
     h = _v.scalar(altitude, "altitude")
     n = _v.count(n_trials, "n_trials", 2)
     batch = np.broadcast_to(q, (n, *q.shape))
@@ -148,7 +149,7 @@ def monte_carlo_mse(
     if prior_std is not None:
         spread = _v.scalar(prior_std, "prior_std")
         if not spread > 0:
-            raise ValueError(f"prior_std: must be > 0, got {prior_std!r}")
+            raise FieldError("prior_std", f"must be > 0, got {prior_std!r}")
         init = s + spread * rng.standard_normal((n, 2))
     est = estimate_target(batch, ranges, h, radar, init=init)
     return _summarise(est.position - s, est.failed, float(crlb(q, s, h, radar)))

@@ -21,6 +21,8 @@ from typing import IO, Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from .errors import FieldError
+
 __all__ = ["atomic_path", "json_text", "save_figure", "write_csv", "write_json", "write_text"]
 
 
@@ -73,7 +75,7 @@ def _csv_text(columns: Mapping[str, Any]) -> str:
     arrays = [np.asarray(columns[name]) for name in names]
     lengths = {a.shape[0] for a in arrays}
     if len(lengths) != 1 or any(a.ndim != 1 for a in arrays):
-        raise ValueError("columns: every column must be 1-D and of the same length")
+        raise FieldError("columns", "every column must be 1-D and of the same length")
     buf: IO[str] = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)

@@ -15,6 +15,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
+from .errors import FieldError
 from .experiments import FORMATION_LABELS, AltitudeSweep, ElevationCurve
 from .montecarlo import EstimatorSweep
 from .simulation import MissionResult
@@ -240,7 +241,7 @@ def plot_mission_trajectories(
         The figure holding the axes.
     """
     if result.positions is None:
-        raise ValueError("result: has no trajectories (simulated with keep_trajectories=False)")
+        raise FieldError("result", "has no trajectories (simulated with keep_trajectories=False)")
     q = result.positions[_check_run(result, run)]
     if ax is None:
         # Size the figure to the scene's aspect ratio (a long chase is wide, not square).
@@ -325,7 +326,7 @@ def plot_mission_timeseries(
         fig = Figure(figsize=(6.4, 7.0), layout="constrained")
         axes = fig.subplots(3, 1, sharex=True, height_ratios=(3, 3, 2))
     if len(axes) != 3:
-        raise ValueError(f"axes: expected three axes, got {len(axes)}")
+        raise FieldError("axes", f"expected three axes, got {len(axes)}")
     ax_crlb, ax_cost, ax_eta = axes
     fig = ax_crlb.figure
     t = result.time
@@ -389,7 +390,7 @@ def plot_estimator_vs_altitude(
         fig = Figure(figsize=(6.4, 7.2), layout="constrained")
         axes = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     if len(axes) != 2:
-        raise ValueError(f"axes: expected two axes, got {len(axes)}")
+        raise FieldError("axes", f"expected two axes, got {len(axes)}")
     ax, ratio_ax = axes
     fig = ax.figure
     h = sweep.altitude
@@ -448,12 +449,12 @@ def plot_estimation_timeseries(
     """
     error = result.estimation_error
     if error is None:
-        raise ValueError("result: has no estimates (simulate a scenario with estimation on)")
+        raise FieldError("result", "has no estimates (simulate a scenario with estimation on)")
     if axes is None:
         fig = Figure(figsize=(6.4, 6.0), layout="constrained")
         axes = fig.subplots(2, 1, sharex=True)
     if len(axes) != 2:
-        raise ValueError(f"axes: expected two axes, got {len(axes)}")
+        raise FieldError("axes", f"expected two axes, got {len(axes)}")
     ax, ax_c = axes
     fig = ax.figure
     t = result.time

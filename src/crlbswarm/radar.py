@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from . import _validation as _v
+from .errors import FieldError
 
 __all__ = [
     "SPEED_OF_LIGHT",
@@ -87,14 +88,16 @@ def _field_value(value: object, name: str) -> float | np.ndarray:
     if isinstance(value, str | bytes | bool | np.bool_) or (
         isinstance(value, np.ndarray) and value.dtype.kind not in "iuf"
     ):
-        raise ValueError(f"radar.{name}: expected a number or an array of numbers, got {value!r}")
+        raise FieldError(
+            f"radar.{name}", f"expected a number or an array of numbers, got {value!r}"
+        )
     arr = _v.positive(value, f"radar.{name}")
     if arr.ndim == 0:
         return float(arr)
     if arr.ndim != 1 or arr.shape[0] == 0:
-        raise ValueError(
-            f"radar.{name}: expected a number or a non-empty 1-D per-UAV array, "
-            f"got shape {arr.shape}"
+        raise FieldError(
+            f"radar.{name}",
+            f"expected a number or a non-empty 1-D per-UAV array, got shape {arr.shape}",
         )
     arr = arr.copy()
     arr.flags.writeable = False
@@ -165,16 +168,17 @@ class Radar:
             if isinstance(value, np.ndarray):
                 lengths.add(value.shape[0])
         if len(lengths) > 1:
-            raise ValueError(
-                "radar: per-UAV fields must all have the same length, "
-                f"got lengths {sorted(lengths)}"
+            raise FieldError(
+                "radar",
+                f"per-UAV fields must all have the same length, got lengths {sorted(lengths)}",
             )
         with np.errstate(over="ignore", under="ignore"):
             a = self.tx_power * self.processing_gain * self.beta0 / (self.kappa * self.noise_power)
         if not np.all(np.isfinite(a) & (np.asarray(a) > 0)):
-            raise ValueError(
-                "radar: A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number "
-                f"({a!r}); the parameters are out of range"
+            raise FieldError(
+                "radar",
+                "A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number "
+                f"({a!r}); the parameters are out of range",
             )
         a = float(a) if np.ndim(a) == 0 else _readonly(a)
         object.__setattr__(self, "_snr_constant", a)
@@ -231,7 +235,7 @@ class Radar:
             with np.errstate(over="ignore", under="ignore"):
                 lin = convert(value)
             if not np.all(np.isfinite(lin) & (lin > 0)):
-                raise ValueError(f"radar.{name}: {value!r} is out of range in linear units")
+                raise FieldError(f"radar.{name}", f"{value!r} is out of range in linear units")
             linear[field_name] = lin
         return cls(**linear, carrier_frequency=carrier_frequency, kappa=kappa)
 
@@ -302,7 +306,7 @@ class Radar:
         d = _v.as_float_array(distance, "distance")
         _v.check_finite(d, "distance")
         if np.any(d < 0):
-            raise ValueError("distance: must be >= 0")
+            raise FieldError("distance", "must be >= 0")
         a = self.snr_constant
         _v.broadcast("radar", np.shape(a), d.shape)
         return d**4 / a

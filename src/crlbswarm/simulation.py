@@ -52,6 +52,7 @@ from .control import (
     _repulsion_point,
 )
 from .design import crlb_bound
+from .errors import FieldError
 from .fisher import crlb
 from .scenario import Scenario
 from .tracking import (
@@ -537,7 +538,7 @@ class MissionResult:
 
     def _run_index(self, run: int) -> int:
         if not isinstance(run, int | np.integer) or not 0 <= run < self.n_runs:
-            raise ValueError(f"run: must be an index in 0..{self.n_runs - 1}, got {run!r}")
+            raise FieldError("run", f"must be an index in 0..{self.n_runs - 1}, got {run!r}")
         return int(run)
 
     def trajectory_columns(self, run: int = 0) -> dict[str, np.ndarray]:
@@ -556,8 +557,8 @@ class MissionResult:
         """
         b = self._run_index(run)
         if self.positions is None:
-            raise ValueError(
-                "result: has no trajectories (simulated with keep_trajectories=False)"
+            raise FieldError(
+                "result", "has no trajectories (simulated with keep_trajectories=False)"
             )
         cols = {
             "time_s": self.time,
@@ -611,7 +612,7 @@ class MissionResult:
         """
         error = self.estimation_error
         if error is None:
-            raise ValueError("result: has no estimates (simulate a scenario with estimation on)")
+            raise FieldError("result", "has no estimates (simulate a scenario with estimation on)")
         return {
             "time_s": self.time,
             "rms_estimation_error_m": np.sqrt(np.mean(error**2, axis=0)),
@@ -688,15 +689,15 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
     if seed is not None and seeds is not None:
-        raise ValueError("seeds: give either seed or seeds, not both")
+        raise FieldError("seeds", "give either seed or seeds, not both")
     values = [0 if seed is None else seed] if seeds is None else list(seeds)
     if not values:
-        raise ValueError("seeds: need at least one seed")
+        raise FieldError("seeds", "need at least one seed")
     name = "seeds" if seeds is not None else "seed"
     for s in values:
         _v.count(s, name, 0)
         if s > MAX_SEED:
-            raise ValueError(f"{name}: must be at most 2**63 - 1, got {s}")
+            raise FieldError(name, f"must be at most 2**63 - 1, got {s}")
     return np.array(values, dtype=np.int64)
 
 
@@ -715,9 +716,10 @@ def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     limit = _physical_memory()
     if limit is not None and total > MEMORY_FRACTION * limit:
         hint = "keep_trajectories=False (--no-trajectories) or fewer" if keep else "fewer"
-        raise ValueError(
-            f"seeds: {n_runs} runs of {k_steps} steps need about {total / 2**30:.1f} GiB, more "
-            f"than half of this machine's {limit / 2**30:.0f} GiB; use {hint} runs per call"
+        raise FieldError(
+            "seeds",
+            f"{n_runs} runs of {k_steps} steps need about {total / 2**30:.1f} GiB, more "
+            f"than half of this machine's {limit / 2**30:.0f} GiB; use {hint} runs per call",
         )
 
 
@@ -759,7 +761,9 @@ def simulate(
         its seed and the step.
     """
     if not isinstance(scenario, Scenario):
-        raise ValueError(f"scenario: expected a crlbswarm.Scenario, got {type(scenario).__name__}")
+        raise FieldError(
+            "scenario", f"expected a crlbswarm.Scenario, got {type(scenario).__name__}"
+        )
     seed_arr = _seed_list(seed, seeds)
     sc = scenario
     n_runs, k_steps, m_uavs = seed_arr.shape[0], sc.time.steps, sc.uavs.count

@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit
 
 from . import _validation as _v
+from .errors import FieldError
 from .fisher import fisher_information
 from .radar import Radar
 
@@ -83,10 +84,10 @@ def motion_matrices(
     """
     step = _v.scalar(dt, "dt")
     if not step > 0:
-        raise ValueError(f"dt: must be > 0, got {dt!r}")
+        raise FieldError("dt", f"must be > 0, got {dt!r}")
     sigma = _v.scalar(acceleration_noise, "acceleration_noise")
     if sigma < 0:
-        raise ValueError(f"acceleration_noise: must be >= 0, got {acceleration_noise!r}")
+        raise FieldError("acceleration_noise", f"must be >= 0, got {acceleration_noise!r}")
     f = np.eye(4)
     q = np.zeros((4, 4))
     if model == "static":
@@ -96,14 +97,14 @@ def motion_matrices(
     elif model == "turning":
         w = float(turn_rate)
         if not (math.isfinite(w) and w != 0.0):
-            raise ValueError(
-                f"turn_rate: the turning model needs a finite non-zero rate, got {turn_rate!r}"
+            raise FieldError(
+                "turn_rate", f"the turning model needs a finite non-zero rate, got {turn_rate!r}"
             )
         s, c = math.sin(w * dt), math.cos(w * dt)
         f[:2, 2:] = [[s / w, -(1.0 - c) / w], [(1.0 - c) / w, s / w]]
         f[2:, 2:] = [[c, -s], [s, c]]
     else:
-        raise ValueError(f"model: expected static, constant_velocity or turning, got {model!r}")
+        raise FieldError("model", f"expected static, constant_velocity or turning, got {model!r}")
     g = _noise_gain(dt)
     q = acceleration_noise**2 * (g @ g.T)
     return f, q, 4
@@ -154,13 +155,13 @@ def target_trajectories(
     g = _noise_gain(dt)
     n_steps = _v.count(n_steps, "n_steps", 0)
     if model == "static" and acceleration_noise > 0:
-        raise ValueError("acceleration_noise: a static target takes no acceleration noise")
+        raise FieldError("acceleration_noise", "a static target takes no acceleration noise")
     if acceleration_noise > 0 and not all(isinstance(r, np.random.Generator) for r in rngs):
-        raise ValueError("rngs: expected one numpy.random.Generator per run")
+        raise FieldError("rngs", "expected one numpy.random.Generator per run")
     start = _v.point(start_xy, "start_xy")
     vel = _v.point(velocity, "velocity")
     if start.shape != (2,) or vel.shape != (2,):
-        raise ValueError("start_xy, velocity: expected shape (2,) each")
+        raise FieldError("start_xy", "expected shape (2,), and velocity too")
     out = np.empty((len(rngs), n_steps + 1, 4))
     out[:, 0, :2] = start
     out[:, 0, 2:] = vel if model != "static" else 0.0
@@ -242,16 +243,16 @@ def posterior_crlb(
     """
     fim = _v.as_float_array(mean_fim, "mean_fim")
     if fim.ndim != 3 or fim.shape[1:] != (2, 2):
-        raise ValueError(f"mean_fim: expected shape (K+1, 2, 2), got {fim.shape}")
+        raise FieldError("mean_fim", f"expected shape (K+1, 2, 2), got {fim.shape}")
     if n_state not in (2, 4):
-        raise ValueError(f"n_state: must be 2 or 4, got {n_state!r}")
+        raise FieldError("n_state", f"must be 2 or 4, got {n_state!r}")
     every = _v.count(measure_every, "measure_every", 1)
     n = n_state
     steps = fim.shape[0]
     try:
         np.linalg.cholesky(np.asarray(p0, dtype=float)[:n, :n])
     except np.linalg.LinAlgError as exc:
-        raise ValueError("p0: the prior covariance must be positive definite") from exc
+        raise FieldError("p0", "the prior covariance must be positive definite") from exc
     measure_every = every
     fk, qk = f[:n, :n], q[:n, :n]
     info = np.linalg.inv(p0[:n, :n])

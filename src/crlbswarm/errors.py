@@ -1,0 +1,89 @@
+"""The exceptions of crlbswarm.
+
+Every error a user can cause is a :class:`FieldError` (a :class:`ValueError`): it carries the
+name of the offending argument or scenario field and the reason as data (``field`` and
+``reason``), and its message is the one line ``"<field>: <reason>"``. The command line maps
+``field`` to its option (``n_uavs`` to ``--uavs``) without reading the message.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CampaignError",
+    "ConfigError",
+    "FieldError",
+    "ScenarioError",
+    "SimulationDivergedError",
+]
+
+
+class FieldError(ValueError):
+    """An invalid argument or field; one line naming it and saying why.
+
+    Parameters
+    ----------
+    field : str
+        Name of the argument (``"altitude"``) or dotted path of the field
+        (``"control.epsilon"``, ``"radar.tx_power"``).
+    reason : str
+        What is wrong, without the field name (``"must be > 0, got -1"``).
+
+    Attributes
+    ----------
+    field : str
+        As given.
+    reason : str
+        As given.
+    """
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}" if field else reason)
+        self.field = field
+        self.reason = reason
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:  # picklable (Dask workers)
+        return (type(self), (self.field, self.reason))
+
+
+class ConfigError(FieldError):
+    """An invalid configuration file (scenario or campaign spec).
+
+    The message is ``"<source>: <field>: <reason>"``, where ``source`` names the file or the
+    built-in scenario; several problems are joined by ``"; "`` on the same line.
+
+    Parameters
+    ----------
+    source : str
+        The file name or a description of where the data came from.
+    field : str
+        Dotted path of the (first) offending field; empty if the whole document is wrong
+        (for example invalid TOML).
+    reason : str
+        What is wrong (all problems, joined by ``"; "``).
+
+    Attributes
+    ----------
+    source : str
+        As given.
+    """
+
+    def __init__(self, source: str, field: str, reason: str) -> None:
+        ValueError.__init__(self, ": ".join(p for p in (source, field, reason) if p))
+        self.source = source
+        self.field = field
+        self.reason = reason
+
+    def __reduce__(self) -> tuple[type, tuple[str, str, str]]:  # type: ignore[override]
+        return (type(self), (self.source, self.field, self.reason))
+
+
+class ScenarioError(ConfigError):
+    """An invalid mission scenario (see :mod:`crlbswarm.scenario`)."""
+
+
+class SimulationDivergedError(RuntimeError):
+    """A run produced NaN or runaway positions; the message names the seed and the step."""
+
+
+class CampaignError(RuntimeError):
+    """A campaign task failed on a worker; the message names the variant and the seeds."""
