@@ -3,6 +3,7 @@ and an interrupted campaign resumed to the same dataset as an uninterrupted one.
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import subprocess
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from distributed import Client, LocalCluster, WorkerPlugin
 
 from crlbswarm import ScenarioError, load_scenario, simulate
 from crlbswarm.campaign import CampaignSpec, plan_tasks, run_campaign
@@ -27,6 +29,23 @@ count = 16
 [grid]
 "control.cruise_speed" = [2.0, 3.0]
 """
+
+
+def local_cluster(n_workers: int) -> LocalCluster:
+    """A local cluster on 127.0.0.1 configured as run_campaign's own (worker processes, one
+    thread each, any free dashboard port, quiet logs)."""
+    return LocalCluster(
+        n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=":0", silence_logs=logging.CRITICAL,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="session")
+def shared_scheduler():
+    """Address of one local cluster (2 workers) shared by the campaign tests that do not need
+    a cluster of their own: starting a cluster per test is most of their cost."""
+    with local_cluster(2) as cluster:
+        yield cluster.scheduler_address
 
 
 def load_runs(folder: Path) -> pd.DataFrame:
@@ -212,10 +231,10 @@ def test_random_sample_of_variants_is_seeded_and_in_range():
     assert len(tasks) == 5
 
 
-def test_trajectories_only_when_asked(tmp_path):
+def test_trajectories_only_when_asked(tmp_path, shared_scheduler):
     """With ``trajectories = true`` each task also saves its positions, equal to simulate's."""
     text = 'base = "paper"\nbatch_size = 2\ntrajectories = true\n[seeds]\ncount = 3\n'
-    run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+    run_campaign(CampaignSpec.from_toml(text), tmp_path, scheduler=shared_scheduler)
     files = sorted(tmp_path.glob("trajectories/*/*.npz"))
     # The Parquet dataset holds only Parquet files, so pandas reads it as is.
     assert len(load_runs(tmp_path)) == 3
@@ -224,16 +243,21 @@ def test_trajectories_only_when_asked(tmp_path):
         positions = data["positions"]
     single = simulate(load_scenario("paper"), seed=2)
     np.testing.assert_array_equal(positions[0], single.positions[0])
-    run_campaign(CampaignSpec.from_toml(text.replace("true", "false")), tmp_path / "b")
+    run_campaign(
+        CampaignSpec.from_toml(text.replace("true", "false")),
+        tmp_path / "b",
+        scheduler=shared_scheduler,
+    )
     assert not (tmp_path / "b" / "trajectories").exists()
 
 
-def test_a_folder_of_another_campaign_is_refused(tmp_path):
+def test_a_folder_of_another_campaign_is_refused(tmp_path, shared_scheduler):
     """Resuming into a folder that holds a different campaign would mix two datasets."""
-    run_campaign(CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n'), tmp_path)
+    first = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n')
+    run_campaign(first, tmp_path, scheduler=shared_scheduler)
     other = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 2\n')
     with pytest.raises(ScenarioError, match=r"^out: .*different campaign"):
-        run_campaign(other, tmp_path)
+        run_campaign(other, tmp_path, scheduler=shared_scheduler)
     assert len(load_runs(tmp_path)) == 1
 
 
@@ -244,32 +268,69 @@ def test_grid_values_of_mixed_types_are_refused_before_running(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_int_and_float_grid_values_share_one_column_type(tmp_path):
+def test_int_and_float_grid_values_share_one_column_type(tmp_path, shared_scheduler):
     text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"control.cruise_speed" = [2, 2.5]\n'
-    run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+    run_campaign(CampaignSpec.from_toml(text), tmp_path, scheduler=shared_scheduler)
     runs = load_runs(tmp_path)
     assert runs["control.cruise_speed"].tolist() == [2.0, 2.5]
 
 
-def test_a_failing_task_names_its_variant_and_keeps_finished_ones(tmp_path):
+def test_a_failing_task_names_its_variant_and_keeps_finished_ones(tmp_path, shared_scheduler):
     """A variant whose runs diverge stops the campaign with one message naming it."""
     from crlbswarm.campaign import CampaignError
 
     text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"disturbance.sigma" = [0.01, 1e9]\n'
     with pytest.raises(CampaignError, match=r"^variant 1 \(disturbance.sigma=1000000000.0\)"):
-        run_campaign(CampaignSpec.from_toml(text), tmp_path, n_workers=1)
+        run_campaign(CampaignSpec.from_toml(text), tmp_path, scheduler=shared_scheduler)
 
 
-def test_a_worker_that_dies_has_its_task_rescheduled(tmp_path, monkeypatch):
-    """The first task kills its own worker process (fault injection); the nanny restarts it,
-    the scheduler reschedules the task, and the dataset is complete and correct."""
-    from crlbswarm.campaign import FAULT_ENV
+class KillWorkerOnce(WorkerPlugin):
+    """Fault injection from the test side: the first campaign task to start executing on
+    any worker kills that worker's process (``os._exit``, as on a crash) after creating
+    ``marker`` with the process id in it; later tasks find the marker and run normally.
 
+    Defined at module level, so the workers (spawned with this process's ``sys.path``)
+    unpickle it by importing this module.
+    """
+
+    name = "crlbswarm-test-kill-worker-once"
+
+    def __init__(self, marker: str) -> None:
+        self.marker = marker
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish != "executing" or not str(key).startswith("crlbswarm-"):
+            return
+        try:
+            fd = os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            return
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        os._exit(1)  # the worker dies mid-task, as on a crash
+
+
+def worker_pids(client: Client) -> set[int]:
+    return set(client.run(os.getpid).values())
+
+
+def test_a_worker_that_dies_has_its_task_rescheduled(tmp_path):
+    """The first task kills its own worker process (a worker plugin injects the fault); the
+    nanny restarts it, the scheduler reschedules the task, and the dataset is complete and
+    correct. Its own cluster: the shared one must not lose a worker."""
     marker = tmp_path / "killed-once"
-    monkeypatch.setenv(FAULT_ENV, str(marker))
     spec = CampaignSpec.from_toml(SPEC)
-    run_campaign(spec, tmp_path / "out", n_workers=2)
-    assert marker.exists()  # a worker did die
-    monkeypatch.delenv(FAULT_ENV)
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        client.wait_for_workers(2, timeout=120)
+        before = worker_pids(client)
+        client.register_plugin(KillWorkerOnce(str(marker)))
+        run_campaign(spec, tmp_path / "out", scheduler=cluster.scheduler_address)
+        assert marker.exists()  # a worker did die
+        killed = int(marker.read_text())
+        client.wait_for_workers(2, timeout=120)  # the nanny restarts it
+        after = worker_pids(client)
+    assert killed in before
+    assert killed not in after
+    assert len(after) == 2
     expected = direct(spec)
     assert_same(load_runs(tmp_path / "out")[expected.columns], expected)

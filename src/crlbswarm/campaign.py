@@ -32,7 +32,6 @@ import hashlib
 import itertools
 import json
 import logging
-import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -242,22 +241,6 @@ def _label(changes: dict[str, Any]) -> str:
     return ", ".join(f"{k}={v}" for k, v in changes.items()) or "base"
 
 
-#: Fault injection for tests: if this environment variable names a file that does not exist
-#: yet, the first task to see it creates the file and kills its own worker process.
-FAULT_ENV = "CRLBSWARM_TEST_KILL_WORKER_ONCE"
-
-
-def _inject_fault() -> None:
-    marker = os.environ.get(FAULT_ENV)
-    if marker:
-        try:
-            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            return
-        os.close(fd)
-        os._exit(1)  # the worker dies mid-task, as on a crash
-
-
 def run_task(
     scenario_data: dict[str, Any], variant: int, first: int, last: int, trajectories: bool
 ) -> dict[str, Any]:
@@ -286,7 +269,6 @@ def run_task(
     """
     import numba
 
-    _inject_fault()
     numba.set_num_threads(1)
     from .simulation import simulate
 
