@@ -15,6 +15,9 @@ from .errors import FieldError
 
 __all__: list[str] = []
 
+#: Largest seed (seeds are stored as int64).
+MAX_SEED = 2**63 - 1
+
 
 def as_float_array(value: object, name: str) -> np.ndarray:
     """Convert ``value`` to a float64 array or raise a ``ValueError`` naming ``name``."""
@@ -89,3 +92,11 @@ def scalar(value: object, name: str) -> float:
     if arr.ndim != 0:
         raise FieldError(name, f"expected a single number, got shape {arr.shape}")
     return float(arr)
+
+
+def seed(value: object, name: str) -> int:
+    """Check a seed: an integer in ``0 .. MAX_SEED``."""
+    s = count(value, name, 0)
+    if s > MAX_SEED:
+        raise FieldError(name, f"must be at most 2**63 - 1, got {s}")
+    return s

@@ -32,42 +32,30 @@ import hashlib
 import itertools
 import json
 import logging
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, model_validator
 
 from . import __version__
+from ._config import ConfigModel, read_toml, read_toml_file, validate
+from .errors import CampaignError, FieldError, ScenarioError
 from .output import atomic_path, write_text
-from .scenario import _BUILTINS, Scenario, ScenarioError, _describe
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from .scenario import Scenario, scenario_data
 
 __all__ = ["CampaignError", "CampaignSpec", "plan_tasks", "run_campaign", "run_task"]
 
 
-class CampaignError(RuntimeError):
-    """A task failed on a worker; the message names the variant and the seeds."""
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
-
-
-class SeedRange(_Model):
+class SeedRange(ConfigModel):
     """Seeds ``start, start + 1, ..., start + count - 1`` for every variant."""
 
     start: Annotated[int, Field(ge=0)] = 0
     count: Annotated[int, Field(ge=1)]
 
 
-class Distribution(_Model):
+class Distribution(ConfigModel):
     """A random field value: ``uniform = [low, high]`` or ``choice = [a, b, ...]``."""
 
     uniform: Annotated[list[float], Field(min_length=2, max_length=2)] | None = None
@@ -80,7 +68,7 @@ class Distribution(_Model):
         return self
 
 
-class RandomSample(_Model):
+class RandomSample(ConfigModel):
     """``samples`` variants with each field drawn from its distribution (seeded)."""
 
     samples: Annotated[int, Field(ge=1)]
@@ -88,7 +76,7 @@ class RandomSample(_Model):
     fields: dict[str, Distribution]
 
 
-class CampaignSpec(_Model):
+class CampaignSpec(ConfigModel):
     """A campaign: base scenario, variants (grid or random) and seeds.
 
     Parameters
@@ -136,14 +124,37 @@ class CampaignSpec(_Model):
         CampaignSpec
             The validated spec.
         """
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{source}: invalid TOML: {exc}") from exc
-        try:
-            return cls.model_validate(data)
-        except ValidationError as exc:
-            raise ScenarioError(f"{source}: {_describe(exc)}") from None
+        return validate(cls, read_toml(text, source), source)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> tuple[CampaignSpec, str]:
+        """Read a spec file; a relative ``base`` scenario path is read from the file's folder.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The spec (TOML).
+
+        Returns
+        -------
+        spec : CampaignSpec
+            The validated spec.
+        text : str
+            The file's text (saved beside the results).
+
+        Raises
+        ------
+        FieldError
+            If the file cannot be read (field ``spec``).
+        ConfigError
+            If it is not a valid spec (one line naming the field).
+        """
+        text, _ = read_toml_file(path, "spec")
+        spec = cls.from_toml(text, source=str(path))
+        beside = Path(path).parent / spec.base
+        if not Path(spec.base).is_absolute() and beside.is_file():
+            spec = spec.model_copy(update={"base": str(beside)})
+        return spec, text
 
     def base_dict(self) -> dict[str, Any]:
         """The base scenario as a dictionary (built-in, or read from its TOML file).
@@ -153,13 +164,10 @@ class CampaignSpec(_Model):
         dict
             Scenario data, ready for :meth:`crlbswarm.Scenario.from_dict`.
         """
-        if self.base in _BUILTINS:
-            return copy.deepcopy(_BUILTINS[self.base])
-        path = Path(self.base)
         try:
-            return tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise ScenarioError(f"base: cannot read scenario {self.base!r}: {exc}") from exc
+            return scenario_data(self.base, "base")[1]
+        except ScenarioError as exc:  # not valid TOML
+            raise FieldError("base", f"cannot read scenario {self.base!r}: {exc}") from None
 
     def variants(self) -> list[dict[str, Any]]:
         """The changed fields of every variant, in a fixed order.
@@ -197,7 +205,7 @@ def _apply(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
         for key in parents:
             node = node.setdefault(key, {})
             if not isinstance(node, dict):
-                raise ScenarioError(f"grid.{dotted}: '{key}' is not a table of the scenario")
+                raise FieldError(f"grid.{dotted}", f"'{key}' is not a table of the scenario")
         node[leaf] = value
     return data
 
@@ -351,7 +359,7 @@ def run_campaign(
     try:
         table = pa.table(rows)
     except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
-        raise ScenarioError(f"grid: the values of a field must share one type ({exc})") from None
+        raise FieldError("grid", f"the values of a field must share one type ({exc})") from None
     # Resuming is only meaningful into the same campaign: refuse a folder holding another
     # (the spec and the resolved base scenario, so an edited base file counts as different).
     canonical = json.dumps(
@@ -361,9 +369,10 @@ def run_campaign(
     digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]
     marker = folder / "spec.json"
     if marker.exists() and marker.read_text(encoding="utf-8") != canonical:
-        raise ScenarioError(
-            f"out: {str(folder)!r} holds the results of a different campaign (its spec.json "
-            "differs); use another folder"
+        raise FieldError(
+            "out",
+            f"{str(folder)!r} holds the results of a different campaign (its spec.json "
+            "differs); use another folder",
         )
     folder.mkdir(parents=True, exist_ok=True)
     write_text(marker, canonical)

@@ -1,8 +1,12 @@
 r"""Distributed formation control laws of the paper, Sec. IV, as pure functions.
 
 Each law is written once, as a Numba-compiled kernel on one formation (arrays ``(M, 2)``),
-and used both by the mission simulator (:mod:`crlbswarm.simulation`) and by the public
-functions below, which accept any batch ``(..., M, 2)`` and never modify their inputs.
+and called both by the mission kernel (:mod:`crlbswarm.mission_kernel`) and by the public
+functions below, which accept any batch ``(..., M, 2)`` and never modify their inputs. The
+gains of every law are declared once, in :class:`ControlGains` and :class:`EtaRule` (name,
+type, default, unit and meaning); the scenario file's ``[control]`` and ``[eta]`` tables are
+these types, the public laws take them, and the mission kernel receives them as typed
+tuples (:meth:`ControlGains.kernel_tuple`).
 
 Laws and the choices the paper leaves open (each documented in ``docs/control.md``):
 
@@ -22,184 +26,202 @@ Laws and the choices the paper leaves open (each documented in ``docs/control.md
 * **Formation input**, eqs. (16) and (19):
   :math:`\mathbf u_{m,k} = -\varepsilon\sum_p a_{mp}(\mathbf q_{m,k} - \mathbf q_{p,k} -
   \eta_k\boldsymbol\delta_{pm}) + \mathbf u^r_{m,k}`, a position increment per step (m).
-* **Repulsion**, eq. (18), summed over every obstacle within :math:`l_\text{safe}`:
-  :math:`E_r(1/l - 1/l_\text{safe})/l^2` along the unit vector from the nearest obstacle point
-  to the UAV; the nearest point of a rectangle is the clamp of the paper, that of a circle
-  the radial projection. Not in the paper: the step is capped at ``max_step`` metres, since
-  :math:`1/l^3` is unbounded and a discrete-time step would otherwise jump.
-* **Scaling factor** :math:`\eta_k` (rule not in the paper): see :func:`eta_target`.
+* **Repulsion**, eq. (18): :func:`crlbswarm.obstacles.repulsion_at`, with the gains of
+  :class:`ControlGains` in :func:`repulsion`.
+* **Motion model**, eq. (3): :func:`motion_model`.
+* **Scaling factor** :math:`\eta_k` (rule not in the paper): see :func:`eta_target` and
+  :func:`eta_update`.
 * **Cost** :math:`\mathcal L_\text{tot}`, eq. (15) summed over UAVs: see
   :func:`formation_cost`.
+
+Adding a control law: write it as an ``@njit`` function on one formation below, wrap it in a
+public function that validates and batches, declare its gains in :class:`ControlGains`, and
+call it from :func:`crlbswarm.mission_kernel.control_step`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections import namedtuple
+from typing import Annotated, Any
 
 import numpy as np
 from numba import njit
+from pydantic import Field
 
 from . import _validation as _v
+from ._config import ConfigModel
 from .errors import FieldError
 from .graphs import Adjacency
+from .obstacles import Obstacles, check_obstacles, clearance_at, repulsion_at
 
 __all__ = [
-    "Obstacles",
+    "ControlGains",
+    "EtaRule",
     "consensus_step",
+    "consensus_update",
+    "control_cost",
+    "eta_goal",
+    "eta_rate_limit",
     "eta_target",
     "eta_update",
     "formation_cost",
     "formation_input",
+    "formation_update",
     "leader_guidance",
-    "obstacle_clearance",
+    "motion_model",
+    "reference_velocity",
     "repulsion",
 ]
 
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
 
 # ---------------------------------------------------------------------------------------
-# Obstacles
+# Gains: each declared once, with its unit and meaning
 # ---------------------------------------------------------------------------------------
-def _rows(value: object, name: str, width: int) -> np.ndarray:
-    """A finite ``(n, width)`` array; an empty input gives ``(0, width)``."""
-    arr = _v.as_float_array(value, name)
-    if arr.size == 0:
-        return np.empty((0, width))
-    if arr.ndim != 2 or arr.shape[1] != width:
-        raise FieldError(name, f"expected shape (n, {width}), got {arr.shape}")
-    return _v.check_finite(arr, name)
+class ControlGains(ConfigModel):
+    """Gains of the control laws (Sec. IV; choices documented in ``docs/control.md``).
 
-
-def _check_obstacles(obstacles: object) -> Obstacles:
-    if not isinstance(obstacles, Obstacles):
-        raise FieldError(
-            "obstacles", f"expected a crlbswarm.Obstacles, got {type(obstacles).__name__}"
-        )
-    return obstacles
-
-
-@dataclass(frozen=True, eq=False)
-class Obstacles:
-    """Axis-aligned rectangles and circles in the horizontal plane.
+    The scenario's ``[control]`` table; the public laws take it, and the mission kernel
+    receives it as :meth:`kernel_tuple`. Frozen; invalid values raise a pydantic
+    ``ValidationError`` (a :class:`ValueError`) naming the field.
 
     Parameters
     ----------
-    rectangles : array_like, shape (R, 4)
-        Rows ``[x_min, x_max, y_min, y_max]``, m, with ``x_min < x_max`` and
-        ``y_min < y_max``.
-    circles : array_like, shape (C, 3)
-        Rows ``[x_center, y_center, radius]``, m, radius > 0.
+    epsilon : float, default 0.01
+        Formation gain :math:`\\varepsilon` per step, eq. (19) (paper: 0.01).
+    gamma : float, default 0.25
+        Consensus step :math:`\\gamma`, eq. (14) (< 1/max degree; ring: < 0.5).
+    guidance_gain : float, default 0.5
+        Leader guidance gain :math:`k_g`, 1/s.
+    cruise_speed : float, default 2
+        Leader cruise speed :math:`v_c`, m/s.
+    safety_radius : float, default 5
+        :math:`l_\\text{safe}` of eq. (18), m (paper: 5).
+    repulsion_gain : float, default 2
+        :math:`E_r` of eq. (18), m^4 per step (so that :math:`\\mathbf u^r` is in metres).
+    repulsion_max_step : float, default 1
+        Cap on :math:`\\lVert\\mathbf u^r\\rVert` per step, m.
+    formation_steering : bool, default True
+        The leader also steers the formation (a disc of radius :math:`\\eta r^*`) off
+        obstacles.
     """
 
-    rectangles: np.ndarray
-    circles: np.ndarray
+    epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
+    gamma: PositiveFloat = Field(0.25, description="consensus step (< 1/max degree; ring: < 0.5)")
+    guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
+    cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
+    safety_radius: PositiveFloat = Field(5.0, description="l_safe, m (paper: 5)")
+    repulsion_gain: PositiveFloat = Field(2.0, description="E_r, m^4 per step (u^r is in metres)")
+    repulsion_max_step: PositiveFloat = Field(1.0, description="cap on |u^r| per step, m")
+    formation_steering: bool = Field(
+        True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
+    )
 
-    def __init__(self, rectangles: object = (), circles: object = ()) -> None:
-        rects = _rows(rectangles, "rectangles", 4)
-        circs = _rows(circles, "circles", 3)
-        if np.any(rects[:, 0] >= rects[:, 1]) or np.any(rects[:, 2] >= rects[:, 3]):
-            raise FieldError("rectangles", "need x_min < x_max and y_min < y_max")
-        if np.any(circs[:, 2] <= 0):
-            raise FieldError("circles", "radius must be > 0")
-        for name, arr in (("rectangles", rects), ("circles", circs)):
-            arr = np.ascontiguousarray(arr, dtype=np.float64).copy()
-            arr.flags.writeable = False
-            object.__setattr__(self, name, arr)
+    def kernel_tuple(self) -> Any:
+        """The gains as a typed named tuple for the compiled kernels (same field names).
 
-    @property
-    def count(self) -> int:
-        """Number of obstacles."""
-        return int(self.rectangles.shape[0] + self.circles.shape[0])
+        Returns
+        -------
+        ControlGainsTuple
+            A :func:`collections.namedtuple` of the fields, in declaration order.
+        """
+        return ControlGainsTuple(**self.model_dump())
+
+
+class EtaRule(ConfigModel):
+    """Rule for the scaling factor :math:`\\eta` (not in the paper; :func:`eta_target`).
+
+    The scenario's ``[eta]`` table; :func:`eta_target` and :func:`eta_update` take it, and
+    the mission kernel receives it as :meth:`kernel_tuple`.
+
+    Parameters
+    ----------
+    enabled : bool, default True
+        False keeps :math:`\\eta = 1`.
+    minimum : float, default 0.3
+        Smallest :math:`\\eta`, in (0, 1].
+    rate : float, default 0.1
+        Largest change of :math:`\\eta` per second, 1/s.
+    lookahead : float, default 40
+        Distance looked ahead along the path, m.
+    margin : float, optional
+        Clearance to keep, m (default: the gains' ``safety_radius``).
+    samples : int, default 32
+        Points sampled on the path (at least 2).
+    """
+
+    enabled: bool = Field(True, description="false keeps eta = 1")
+    minimum: Annotated[float, Field(gt=0, le=1)] = Field(0.3, description="smallest eta")
+    rate: PositiveFloat = Field(0.1, description="largest change of eta per second, 1/s")
+    lookahead: PositiveFloat = Field(40.0, description="distance looked ahead, m")
+    margin: PositiveFloat | None = Field(
+        None, description="clearance to keep, m (default: control.safety_radius)"
+    )
+    samples: Annotated[int, Field(ge=2)] = Field(32, description="points sampled on the path")
+
+    def margin_for(self, gains: ControlGains) -> float:
+        """The clearance the rule keeps: ``margin``, or the gains' safety radius.
+
+        Parameters
+        ----------
+        gains : ControlGains
+            The gains (their ``safety_radius`` is the default margin).
+
+        Returns
+        -------
+        float
+            Margin, m.
+        """
+        return gains.safety_radius if self.margin is None else self.margin
+
+    def kernel_tuple(self, gains: ControlGains) -> Any:
+        """The rule as a typed named tuple for the compiled kernels, margin resolved.
+
+        Parameters
+        ----------
+        gains : ControlGains
+            The gains (their ``safety_radius`` is the default margin).
+
+        Returns
+        -------
+        EtaRuleTuple
+            A :func:`collections.namedtuple` of the fields, in declaration order.
+        """
+        return EtaRuleTuple(**{**self.model_dump(), "margin": self.margin_for(gains)})
+
+
+#: The typed tuples the compiled kernels receive (derived from the declarations above).
+ControlGainsTuple = namedtuple("ControlGainsTuple", list(ControlGains.model_fields))
+EtaRuleTuple = namedtuple("EtaRuleTuple", list(EtaRule.model_fields))
+
+_DEFAULT_GAINS = ControlGains()
+
+
+def _check_gains(gains: object) -> ControlGains:
+    if not isinstance(gains, ControlGains):
+        raise FieldError("gains", f"expected a crlbswarm.ControlGains, got {type(gains).__name__}")
+    return gains
+
+
+def _check_rule(rule: object) -> EtaRule:
+    if not isinstance(rule, EtaRule):
+        raise FieldError("rule", f"expected a crlbswarm.EtaRule, got {type(rule).__name__}")
+    return rule
 
 
 #: Points sampled across the path (odd, so the path itself is one) by the eta rule.
-_LATERAL_SAMPLES = 9
+LATERAL_SAMPLES = 9
 
 
 # ---------------------------------------------------------------------------------------
-# Kernels on one formation (Numba)
+# Compiled laws on one formation (called by the public functions and the mission kernel)
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _rect_distance(x, y, xmin, xmax, ymin, ymax):
-    """Signed distance to a rectangle and the unit vector from its nearest point to (x, y)."""
-    cx = min(max(x, xmin), xmax)
-    cy = min(max(y, ymin), ymax)
-    dx = x - cx
-    dy = y - cy
-    d = math.sqrt(dx * dx + dy * dy)
-    if d > 0.0:
-        return d, dx / d, dy / d
-    # Inside: the nearest boundary point is on the closest face (negative distance).
-    left = x - xmin
-    right = xmax - x
-    down = y - ymin
-    up = ymax - y
-    best = left
-    ux, uy = -1.0, 0.0
-    if right < best:
-        best, ux, uy = right, 1.0, 0.0
-    if down < best:
-        best, ux, uy = down, 0.0, -1.0
-    if up < best:
-        best, ux, uy = up, 0.0, 1.0
-    return -best, ux, uy
-
-
-@njit(cache=True, inline="always")
-def _circle_distance(x, y, cx, cy, r):
-    dx = x - cx
-    dy = y - cy
-    rho = math.sqrt(dx * dx + dy * dy)
-    if rho > 0.0:
-        return rho - r, dx / rho, dy / rho
-    return -r, 1.0, 0.0
-
-
 @njit(cache=True)
-def _clearance_point(x, y, rects, circles):
-    """Signed distance from (x, y) to the nearest obstacle (+inf without obstacles)."""
-    best = math.inf
-    for i in range(rects.shape[0]):
-        d, _, _ = _rect_distance(x, y, rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3])
-        best = min(best, d)
-    for i in range(circles.shape[0]):
-        d, _, _ = _circle_distance(x, y, circles[i, 0], circles[i, 1], circles[i, 2])
-        best = min(best, d)
-    return best
-
-
-@njit(cache=True)
-def _repulsion_point(x, y, rects, circles, gain, l_safe, max_step, inflate=0.0):
-    """Eq. (18) summed over the obstacles within l_safe, capped at max_step.
-
-    ``inflate`` is subtracted from every distance: the repulsion felt by a disc of that
-    radius centred at (x, y) (used for the formation as a whole by the leader guidance).
-    """
-    fx = 0.0
-    fy = 0.0
-    n_r = rects.shape[0]
-    for i in range(n_r + circles.shape[0]):
-        if i < n_r:
-            d, ux, uy = _rect_distance(x, y, rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3])
-        else:
-            j = i - n_r
-            d, ux, uy = _circle_distance(x, y, circles[j, 0], circles[j, 1], circles[j, 2])
-        d -= inflate
-        if d < l_safe:
-            ell = max(d, 1e-9)  # inside an obstacle: push out along the nearest face
-            mag = gain * (1.0 / ell - 1.0 / l_safe) / (ell * ell)
-            fx += mag * ux
-            fy += mag * uy
-    norm = math.sqrt(fx * fx + fy * fy)
-    if norm > max_step:
-        fx *= max_step / norm
-        fy *= max_step / norm
-    return fx, fy
-
-
-@njit(cache=True)
-def _consensus(v, v_ref, leader, indptr, indices, gamma, out):
-    """Corrected eq. (14): followers step toward their neighbours; the leader holds v_ref."""
+def consensus_update(v, v_ref, leader, indptr, indices, gamma, out):
+    """Corrected eq. (14) on one formation: followers step toward their neighbours; the
+    leader holds ``v_ref``. Writes ``out`` (M, 2). Compiled kernel, no checks."""
     for m in range(v.shape[0]):
         if m == leader:
             out[m, 0] = v_ref[0]
@@ -220,8 +242,9 @@ def _consensus(v, v_ref, leader, indptr, indices, gamma, out):
 
 
 @njit(cache=True)
-def _formation(q, delta, eta, eps, indptr, indices, out):
-    """Eq. (19) without repulsion: -eps sum_p a_mp (q_m - q_p - eta (delta_m - delta_p))."""
+def formation_update(q, delta, eta, eps, indptr, indices, out):
+    """Eq. (19) without repulsion on one formation:
+    ``-eps sum_p a_mp (q_m - q_p - eta (delta_m - delta_p))``. Writes ``out`` (M, 2)."""
     for m in range(q.shape[0]):
         sx = 0.0
         sy = 0.0
@@ -233,17 +256,25 @@ def _formation(q, delta, eta, eps, indptr, indices, out):
         out[m, 1] = -eps * sy
 
 
+@njit(cache=True, inline="always")
+def motion_model(q, u, u_r, v, dt, n):
+    """Eq. (3) for one coordinate: ``q_{k+1} = q_k + u_k + u^r_k + v_k dT + n_k``, with the
+    formation input ``u``, the repulsion ``u_r`` (together the paper's u), the consensus
+    velocity ``v`` (the paper's g) and the disturbance ``n``."""
+    return q + u + u_r + v * dt + n
+
+
 @njit(cache=True)
-def _reference(
+def reference_velocity(
     qx, qy, gx, gy, cx, cy, gain, cruise, tvx, tvy, rects, circles, e_r, l_safe, footprint, dt
 ):
-    """Leader reference velocity (not in the paper): the goal's velocity plus proportional
-    guidance to the goal plus, if ``footprint > 0``, the repulsion felt by the formation's
-    disc, saturated at cruise."""
+    """Leader reference velocity (not in the paper; :func:`leader_guidance`): the goal's
+    velocity plus proportional guidance to the goal plus, if ``footprint > 0``, the
+    repulsion felt by the formation's disc, saturated at ``cruise``. Compiled kernel."""
     wx = tvx + gain * (gx - qx)
     wy = tvy + gain * (gy - qy)
     if footprint > 0.0:
-        rx, ry = _repulsion_point(cx, cy, rects, circles, e_r, l_safe, math.inf, footprint)
+        rx, ry = repulsion_at(cx, cy, rects, circles, e_r, l_safe, math.inf, footprint)
         wx += rx / dt
         wy += ry / dt
     speed = math.sqrt(wx * wx + wy * wy)
@@ -254,8 +285,9 @@ def _reference(
 
 
 @njit(cache=True)
-def _eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_samples, eta_min):
-    """Free half-width of the corridor ahead of the formation -> scale in [eta_min, 1]."""
+def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_samples, eta_min):
+    """Free half-width of the corridor ahead of the formation -> scale in [eta_min, 1]
+    (:func:`eta_target`). Compiled kernel, no checks."""
     if rects.shape[0] + circles.shape[0] == 0:
         return 1.0
     hx = sx - cx
@@ -274,14 +306,14 @@ def _eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sampl
         t = -radius + (ahead + radius) * i / (n_samples - 1)
         px = cx + t * hx
         py = cy + t * hy
-        if _clearance_point(px, py, rects, circles) >= enough:
+        if clearance_at(px, py, rects, circles) >= enough:
             continue  # the lateral best is at least as large: no effect on the result
         # Half-width of the corridor's cross-section: the best clearance the centre could
         # have within +-radius of the straight path (the repulsion centres the formation).
         best = -math.inf
-        for j in range(_LATERAL_SAMPLES):
-            o = radius * (2.0 * j / (_LATERAL_SAMPLES - 1) - 1.0)
-            best = max(best, _clearance_point(px - o * hy, py + o * hx, rects, circles))
+        for j in range(LATERAL_SAMPLES):
+            o = radius * (2.0 * j / (LATERAL_SAMPLES - 1) - 1.0)
+            best = max(best, clearance_at(px - o * hy, py + o * hx, rects, circles))
         width = min(width, best)
         if width <= floor:
             break  # clipped at eta_min whatever the remaining samples say
@@ -289,9 +321,17 @@ def _eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sampl
     return min(1.0, max(eta_min, scale))
 
 
+@njit(cache=True, inline="always")
+def eta_rate_limit(eta, goal, max_step):
+    """One rate-limited step of eta toward its goal (:func:`eta_update`): eta plus the change,
+    clipped to +-``max_step``."""
+    return eta + min(max_step, max(-max_step, goal - eta))
+
+
 @njit(cache=True)
-def _cost(q, q_next, delta, v_ref, dt, indptr, indices):
-    """Eq. (15) summed over UAVs with the nominal displacements delta_pm = delta_m - delta_p."""
+def control_cost(q, q_next, delta, v_ref, dt, indptr, indices):
+    """Eq. (15) summed over UAVs on one formation, with the nominal displacements
+    ``delta_pm = delta_m - delta_p`` (:func:`formation_cost`). Compiled kernel."""
     total = 0.0
     for m in range(q.shape[0]):
         for j in range(indptr[m], indptr[m + 1]):
@@ -309,27 +349,21 @@ def _cost(q, q_next, delta, v_ref, dt, indptr, indices):
 @njit(cache=True)
 def _consensus_batch(v, v_ref, leader, indptr, indices, gamma, out):
     for b in range(v.shape[0]):
-        _consensus(v[b], v_ref[b], leader, indptr, indices, gamma, out[b])
+        consensus_update(v[b], v_ref[b], leader, indptr, indices, gamma, out[b])
 
 
 @njit(cache=True)
 def _formation_batch(q, delta, eta, eps, indptr, indices, out):
     for b in range(q.shape[0]):
-        _formation(q[b], delta, eta[b], eps, indptr, indices, out[b])
+        formation_update(q[b], delta, eta[b], eps, indptr, indices, out[b])
 
 
 @njit(cache=True)
 def _repulsion_batch(q, rects, circles, gain, l_safe, max_step, out):
     for b in range(q.shape[0]):
-        fx, fy = _repulsion_point(q[b, 0], q[b, 1], rects, circles, gain, l_safe, max_step)
+        fx, fy = repulsion_at(q[b, 0], q[b, 1], rects, circles, gain, l_safe, max_step)
         out[b, 0] = fx
         out[b, 1] = fy
-
-
-@njit(cache=True)
-def _clearance_batch(q, rects, circles, out):
-    for b in range(q.shape[0]):
-        out[b] = _clearance_point(q[b, 0], q[b, 1], rects, circles)
 
 
 @njit(cache=True)
@@ -337,7 +371,7 @@ def _reference_batch(
     q, goal, c, tv, gain, cruise, rects, circles, e_r, l_safe, footprint, dt, out
 ):
     for b in range(q.shape[0]):
-        vx, vy = _reference(
+        vx, vy = reference_velocity(
             q[b, 0], q[b, 1], goal[b, 0], goal[b, 1], c[b, 0], c[b, 1], gain, cruise,
             tv[b, 0], tv[b, 1], rects, circles, e_r, l_safe, footprint, dt,
         )  # fmt: skip
@@ -348,16 +382,22 @@ def _reference_batch(
 @njit(cache=True)
 def _eta_goal_batch(c, s, radius, rects, circles, margin, lookahead, n_samples, eta_min, out):
     for b in range(c.shape[0]):
-        out[b] = _eta_goal(
+        out[b] = eta_goal(
             c[b, 0], c[b, 1], s[b, 0], s[b, 1], radius, rects, circles,
             margin, lookahead, n_samples, eta_min,
         )  # fmt: skip
 
 
 @njit(cache=True)
+def _eta_rate_limit_batch(eta, goal, max_step, out):
+    for b in range(eta.shape[0]):
+        out[b] = eta_rate_limit(eta[b], goal[b], max_step)
+
+
+@njit(cache=True)
 def _cost_batch(q, q_next, delta, v_ref, dt, indptr, indices, out):
     for b in range(q.shape[0]):
-        out[b] = _cost(q[b], q_next[b], delta, v_ref[b], dt, indptr, indices)
+        out[b] = control_cost(q[b], q_next[b], delta, v_ref[b], dt, indptr, indices)
 
 
 # ---------------------------------------------------------------------------------------
@@ -395,10 +435,6 @@ def _scale(eta: object, name: str) -> np.ndarray:
     return e
 
 
-def _is_inf(value: object) -> bool:
-    return isinstance(value, float | int | np.floating) and value == math.inf
-
-
 def _check_leader(leader: int, n: int) -> int:
     lead = _v.count(leader, "leader", 0)
     if lead >= n:
@@ -407,7 +443,11 @@ def _check_leader(leader: int, n: int) -> int:
 
 
 def consensus_step(
-    velocities: object, v_ref: object, adjacency: Adjacency, leader: int, gamma: float
+    velocities: object,
+    v_ref: object,
+    adjacency: Adjacency,
+    leader: int,
+    gains: ControlGains = _DEFAULT_GAINS,
 ) -> np.ndarray:
     r"""One step of the corrected leader-follower velocity consensus, eq. (14).
 
@@ -428,8 +468,9 @@ def consensus_step(
         Communication graph.
     leader : int
         Index of the leader.
-    gamma : float
-        Consensus step, > 0 (stable iff below :func:`crlbswarm.consensus_step_limit`).
+    gains : ControlGains, optional
+        Its ``gamma`` is the consensus step (stable iff below
+        :func:`crlbswarm.consensus_step_limit`).
 
     Returns
     -------
@@ -439,7 +480,7 @@ def consensus_step(
     v = _formation_arrays(velocities, "velocities", adjacency)
     ref = _v.point(v_ref, "v_ref")
     lead = _check_leader(leader, adjacency.n_nodes)
-    g = float(_v.positive(gamma, "gamma"))
+    g = _check_gains(gains).gamma
     shape = _v.broadcast("v_ref", v.shape[:-2], ref.shape[:-1])
     vb = _flat(v, shape, v.shape[-2:])
     rb = _flat(ref, shape, (2,))
@@ -451,15 +492,12 @@ def consensus_step(
 def leader_guidance(
     leader_xy: object,
     goal_xy: object,
-    gain: float,
-    cruise_speed: float,
+    gains: ControlGains = _DEFAULT_GAINS,
     *,
     center_xy: object = None,
     goal_velocity: object = (0.0, 0.0),
     footprint: float = 0.0,
     obstacles: Obstacles | None = None,
-    repulsion_gain: float = 2.0,
-    safety_radius: float = 5.0,
     dt: float = 0.1,
 ) -> np.ndarray:
     r"""Leader's reference velocity :math:`\mathbf v^*_k` (not in the paper).
@@ -486,10 +524,10 @@ def leader_guidance(
         Leader position :math:`\mathbf q_1`, m.
     goal_xy : array_like, shape (..., 2)
         Goal :math:`\mathbf g`, m.
-    gain : float
-        Proportional gain :math:`k_g`, 1/s.
-    cruise_speed : float
-        Saturation speed :math:`v_c`, m/s.
+    gains : ControlGains, optional
+        Its ``guidance_gain`` :math:`k_g` (1/s), ``cruise_speed`` :math:`v_c` (m/s), and
+        for the steering term ``repulsion_gain`` :math:`E_r` and ``safety_radius``
+        :math:`l_\text{safe}`.
     center_xy : array_like, shape (..., 2), optional
         Formation centre :math:`\mathbf c` (needed when ``footprint > 0``), m.
     goal_velocity : array_like, shape (..., 2), default (0, 0)
@@ -498,10 +536,6 @@ def leader_guidance(
         Radius :math:`\rho` of the formation's disc, m; 0 turns steering off.
     obstacles : Obstacles, optional
         Obstacles for the steering term.
-    repulsion_gain : float, default 2
-        :math:`E_r` of the steering term, m^4 per step (the paper scenario's value).
-    safety_radius : float, default 5
-        :math:`l_\text{safe}` of the steering term, m (the paper's value).
     dt : float, default 0.1
         Time step :math:`\Delta T`, s (turns the repulsive step into a velocity).
 
@@ -512,17 +546,14 @@ def leader_guidance(
     """
     q = _v.point(leader_xy, "leader_xy")
     goal = _v.point(goal_xy, "goal_xy")
-    k = float(_v.positive(gain, "gain"))
-    vc = float(_v.positive(cruise_speed, "cruise_speed"))
+    g = _check_gains(gains)
     rho = float(_v.finite(footprint, "footprint"))
     if rho < 0:
         raise FieldError("footprint", f"must be >= 0, got {footprint!r}")
-    obs = _check_obstacles(obstacles) if obstacles is not None else Obstacles()
+    obs = check_obstacles(obstacles) if obstacles is not None else Obstacles()
     c = q if center_xy is None else _v.point(center_xy, "center_xy")
     if rho > 0 and (center_xy is None or obstacles is None):
         raise FieldError("footprint", "steering needs center_xy and obstacles")
-    e_r = float(_v.positive(repulsion_gain, "repulsion_gain"))
-    l_safe = float(_v.positive(safety_radius, "safety_radius"))
     step = float(_v.positive(dt, "dt"))
     tv = _v.point(goal_velocity, "goal_velocity")
     shape = _v.broadcast("goal_xy", q.shape, goal.shape)
@@ -531,14 +562,18 @@ def leader_guidance(
     out = np.empty((int(np.prod(shape[:-1], dtype=int)), 2))
     _reference_batch(
         _flat(q, shape[:-1], (2,)), _flat(goal, shape[:-1], (2,)), _flat(c, shape[:-1], (2,)),
-        _flat(tv, shape[:-1], (2,)), k, vc, obs.rectangles, obs.circles, e_r, l_safe, rho,
-        step, out,
+        _flat(tv, shape[:-1], (2,)), g.guidance_gain, g.cruise_speed, obs.rectangles,
+        obs.circles, g.repulsion_gain, g.safety_radius, rho, step, out,
     )  # fmt: skip
     return out.reshape(shape)
 
 
 def formation_input(
-    positions: object, delta: object, eta: object, adjacency: Adjacency, epsilon: float
+    positions: object,
+    delta: object,
+    eta: object,
+    adjacency: Adjacency,
+    gains: ControlGains = _DEFAULT_GAINS,
 ) -> np.ndarray:
     r"""Displacement-based formation input without repulsion, eqs. (16) and (19).
 
@@ -558,8 +593,8 @@ def formation_input(
         Scaling factor :math:`\eta_k \in (0, 1]`.
     adjacency : Adjacency
         Communication graph.
-    epsilon : float
-        Per-step gain :math:`\varepsilon > 0` (stable iff below
+    gains : ControlGains, optional
+        Its ``epsilon`` is the per-step gain :math:`\varepsilon` (stable iff below
         :func:`crlbswarm.formation_step_limit`).
 
     Returns
@@ -570,7 +605,7 @@ def formation_input(
     q = _formation_arrays(positions, "positions", adjacency)
     d = _slot_offsets(delta, adjacency)
     e = _scale(eta, "eta")
-    eps = float(_v.positive(epsilon, "epsilon"))
+    eps = _check_gains(gains).epsilon
     shape = _v.broadcast("eta", q.shape[:-2], e.shape)
     qb = _flat(q, shape, q.shape[-2:])
     eb = _flat(e, shape, ())
@@ -581,35 +616,8 @@ def formation_input(
     return out.reshape(*shape, *q.shape[-2:])
 
 
-def obstacle_clearance(positions: object, obstacles: Obstacles) -> np.ndarray:
-    """Signed distance from each point to the nearest obstacle (negative inside), m.
-
-    Parameters
-    ----------
-    positions : array_like, shape (..., 2)
-        Points, m.
-    obstacles : Obstacles
-        Rectangles and circles.
-
-    Returns
-    -------
-    ndarray, shape (...)
-        Clearance, m; ``+inf`` if there are no obstacles.
-    """
-    q = _v.point(positions, "positions")
-    qb = np.ascontiguousarray(q).reshape(-1, 2)
-    out = np.empty(qb.shape[0])
-    obs = _check_obstacles(obstacles)
-    _clearance_batch(qb, obs.rectangles, obs.circles, out)
-    return out.reshape(q.shape[:-1])
-
-
 def repulsion(
-    positions: object,
-    obstacles: Obstacles,
-    gain: float,
-    safety_radius: float,
-    max_step: float = math.inf,
+    positions: object, obstacles: Obstacles, gains: ControlGains = _DEFAULT_GAINS
 ) -> np.ndarray:
     r"""Repulsive input :math:`\mathbf u^r`, eq. (18), summed over nearby obstacles.
 
@@ -618,7 +626,7 @@ def repulsion(
         \frac{1}{l_\text{safe}}\Bigr) \frac{1}{l_o^2}\, \frac{\vec{\mathbf l}_o}{l_o}
 
     with :math:`\vec{\mathbf l}_o` from the nearest point of obstacle :math:`o` to the UAV.
-    Not in the paper: the sum is capped at ``max_step`` metres.
+    Not in the paper: the sum is capped at ``repulsion_max_step`` metres.
 
     Parameters
     ----------
@@ -626,12 +634,10 @@ def repulsion(
         UAV positions, m.
     obstacles : Obstacles
         Rectangles and circles.
-    gain : float
-        Repulsion gain :math:`E_r`, m^4 per step (so that :math:`\mathbf u^r` is in metres).
-    safety_radius : float
-        :math:`l_\text{safe}`, m.
-    max_step : float, default inf
-        Cap on the length of :math:`\mathbf u^r`, m.
+    gains : ControlGains, optional
+        Its ``repulsion_gain`` :math:`E_r` (m^4 per step, so that :math:`\mathbf u^r` is
+        in metres), ``safety_radius`` :math:`l_\text{safe}` (m) and
+        ``repulsion_max_step``, the cap on the length of :math:`\mathbf u^r` (m).
 
     Returns
     -------
@@ -639,15 +645,14 @@ def repulsion(
         Position increment per step, m.
     """
     q = _v.point(positions, "positions")
-    e_r = float(_v.positive(gain, "gain"))
-    l_safe = float(_v.positive(safety_radius, "safety_radius"))
-    cap = _v.scalar(max_step, "max_step") if not _is_inf(max_step) else math.inf
-    if not cap > 0:
-        raise FieldError("max_step", f"must be > 0 (inf for no cap), got {max_step!r}")
+    g = _check_gains(gains)
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty_like(qb)
-    obs = _check_obstacles(obstacles)
-    _repulsion_batch(qb, obs.rectangles, obs.circles, e_r, l_safe, cap, out)
+    obs = check_obstacles(obstacles)
+    _repulsion_batch(
+        qb, obs.rectangles, obs.circles, g.repulsion_gain, g.safety_radius,
+        g.repulsion_max_step, out,
+    )  # fmt: skip
     return out.reshape(q.shape)
 
 
@@ -656,16 +661,15 @@ def eta_target(
     target_xy: object,
     obstacles: Obstacles,
     radius: float,
-    margin: float,
-    lookahead: float,
-    eta_min: float,
-    n_samples: int = 32,
+    rule: EtaRule,
+    gains: ControlGains = _DEFAULT_GAINS,
 ) -> np.ndarray:
     r"""Desired scaling factor from the free width ahead of the formation (not in the paper).
 
     The paper says only that :math:`\eta_k` "is adaptively reduced when the formation centre
-    approaches spatial bottlenecks". crlbswarm samples ``n_samples`` points on the segment
-    from ``radius`` behind the formation centre :math:`\mathbf c` to ``lookahead`` ahead of it,
+    approaches spatial bottlenecks". crlbswarm samples ``rule.samples`` points on the segment
+    from ``radius`` behind the formation centre :math:`\mathbf c` to ``rule.lookahead``
+    ahead of it,
     toward the target. At each point it takes the largest obstacle clearance across the path
     within :math:`\pm R` (9 points, spacing :math:`R/4`): the half-width of the corridor's
     cross-section there, since the repulsion and the leader's steering centre the formation
@@ -673,7 +677,8 @@ def eta_target(
     :math:`R/8`, so the formation shrinks slightly more than needed). The
     smallest of these along the path is the free half-width :math:`w` of the corridor the
     formation is about to use, and the rule asks for the scale at which a formation of
-    nominal radius :math:`R` keeps ``margin`` from every obstacle:
+    nominal radius :math:`R` keeps the margin (``rule.margin``, or the safety radius)
+    from every obstacle:
 
     .. math:: \eta^\text{goal} = \operatorname{clip}\bigl((w - \text{margin})/R,\;
               \eta_\min,\; 1\bigr).
@@ -693,14 +698,11 @@ def eta_target(
         Rectangles and circles.
     radius : float
         Nominal formation radius :math:`R` (at :math:`\eta = 1`), m.
-    margin : float
-        Clearance to keep, m (the safety radius by default in scenarios).
-    lookahead : float
-        How far ahead to look, m.
-    eta_min : float
-        Smallest scale, in (0, 1].
-    n_samples : int, default 32
-        Points sampled along the segment (at least 2).
+    rule : EtaRule
+        Its ``margin`` (clearance to keep, m), ``lookahead`` (m), ``minimum``
+        (:math:`\eta_\min`) and ``samples`` (points along the segment).
+    gains : ControlGains, optional
+        Its ``safety_radius`` is the margin when ``rule.margin`` is not set.
 
     Returns
     -------
@@ -711,21 +713,19 @@ def eta_target(
     s = _v.point(target_xy, "target_xy")
     shape = _v.broadcast("target_xy", c.shape, s.shape)
     r = float(_v.positive(radius, "radius"))
-    mrg = float(_v.finite(margin, "margin"))
-    look = float(_v.positive(lookahead, "lookahead"))
-    lo = float(_v.positive(eta_min, "eta_min"))
-    if lo > 1.0:
-        raise FieldError("eta_min", f"must lie in (0, 1], got {eta_min!r}")
-    n = _v.count(n_samples, "n_samples", 2)
+    rl = _check_rule(rule)
+    mrg = rl.margin_for(_check_gains(gains))
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))
     out = np.empty(cb.shape[0])
-    obs = _check_obstacles(obstacles)
-    _eta_goal_batch(cb, sb, r, obs.rectangles, obs.circles, mrg, look, n, lo, out)
+    obs = check_obstacles(obstacles)
+    _eta_goal_batch(
+        cb, sb, r, obs.rectangles, obs.circles, mrg, rl.lookahead, rl.samples, rl.minimum, out
+    )
     return out.reshape(shape[:-1])
 
 
-def eta_update(eta: object, goal: object, rate: float, dt: float) -> np.ndarray:
+def eta_update(eta: object, goal: object, rule: EtaRule, dt: float) -> np.ndarray:
     r"""Rate-limited step of :math:`\eta` toward its goal (not in the paper).
 
     :math:`\eta_{k+1} = \eta_k + \operatorname{clip}(\eta^\text{goal}_k - \eta_k,
@@ -737,8 +737,8 @@ def eta_update(eta: object, goal: object, rate: float, dt: float) -> np.ndarray:
         Current scale :math:`\eta_k`.
     goal : float or array_like
         Desired scale from :func:`eta_target`.
-    rate : float
-        Largest change per second :math:`\rho`, 1/s.
+    rule : EtaRule
+        Its ``rate`` is the largest change per second :math:`\rho`, 1/s.
     dt : float
         Time step :math:`\Delta T`, s.
 
@@ -749,8 +749,11 @@ def eta_update(eta: object, goal: object, rate: float, dt: float) -> np.ndarray:
     """
     e = _scale(eta, "eta")
     g = _scale(goal, "goal")
-    step = float(_v.positive(rate, "rate")) * float(_v.positive(dt, "dt"))
-    return e + np.clip(g - e, -step, step)
+    step = _check_rule(rule).rate * float(_v.positive(dt, "dt"))
+    shape = _v.broadcast("goal", e.shape, g.shape)
+    out = np.empty(int(np.prod(shape, dtype=int)))
+    _eta_rate_limit_batch(_flat(e, shape, ()), _flat(g, shape, ()), step, out)
+    return out.reshape(shape)
 
 
 def formation_cost(

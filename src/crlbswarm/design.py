@@ -28,15 +28,19 @@ the positive root (the other is negative). As :math:`H \to 0`, :math:`b \to 0` a
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from . import _validation as _v
 from .errors import FieldError
+from .fisher import crlb
 from .geometry import regular_polygon
 from .radar import Radar
 
 __all__ = [
     "crlb_bound",
+    "design_report",
     "information_weight",
     "optimal_elevation",
     "optimal_formation",
@@ -255,3 +259,54 @@ def optimal_formation(
     radius = optimal_radius(altitude, radar)
     _v.broadcast("altitude", target.shape[:-1], radius.shape)
     return regular_polygon(n, target, radius, rotation)
+
+
+def design_report(
+    n_uavs: int,
+    altitude: float,
+    target_xy: object = (0.0, 0.0),
+    radar: Radar = _DEFAULT_RADAR,
+    rotation_deg: float = 0.0,
+) -> dict[str, Any]:
+    """The CRLB-optimal formation of a scene and its figures, as a JSON-ready dict.
+
+    What ``crlbswarm design`` prints (as a table, or as JSON with ``--json``).
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of UAVs M >= 3.
+    altitude : float
+        Flight altitude H, m.
+    target_xy : array_like, shape (2,), default (0, 0)
+        Target position, m.
+    radar : Radar, optional
+        Link parameters (paper profile by default).
+    rotation_deg : float, default 0
+        Azimuth of UAV 1 seen from the target, degrees (a report for display, so in
+        degrees like its output).
+
+    Returns
+    -------
+    dict
+        Keys: ``n_uavs``, ``altitude_m``, ``target_m`` ([x, y]), ``rotation_deg``,
+        ``elevation_deg`` (phi*), ``radius_m`` (r*), ``positions_m`` (M x [x, y], UAV 1
+        first), ``crlb_m2`` (tr J^-1 of F*), ``bound_m2`` (4/sum w*), ``rmse_bound_m``
+        (sqrt of the CRLB), ``radar`` (the link parameters in linear SI units).
+    """
+    target = np.asarray(target_xy, dtype=float)
+    positions = optimal_formation(n_uavs, target, altitude, radar, np.radians(rotation_deg))
+    value = float(crlb(positions, target, altitude, radar))
+    return {
+        "n_uavs": n_uavs,
+        "altitude_m": float(altitude),
+        "target_m": target.tolist(),
+        "rotation_deg": float(rotation_deg),
+        "elevation_deg": float(np.degrees(optimal_elevation(altitude, radar))),
+        "radius_m": float(optimal_radius(altitude, radar)),
+        "positions_m": positions.tolist(),
+        "crlb_m2": value,
+        "bound_m2": float(crlb_bound(n_uavs, altitude, radar)),
+        "rmse_bound_m": float(np.sqrt(value)),
+        "radar": radar.to_dict(),
+    }

@@ -33,15 +33,16 @@ likelihood; at low SNR a few trials can end in another local minimum.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import vectorize
 
 from . import _validation as _v
 from .errors import FieldError
-from .fisher import _check_radar
 from .geometry import check_scene, target_offsets
-from .radar import Radar
+from .radar import Radar, check_radar
 
 __all__ = [
     "TargetEstimate",
@@ -49,6 +50,7 @@ __all__ = [
     "linearised_estimate",
     "measure_ranges",
     "negative_log_likelihood",
+    "noisy_range",
 ]
 
 _DEFAULT_RADAR = Radar()
@@ -61,6 +63,31 @@ def _ranges_array(measured_ranges: object, n_uavs: int) -> np.ndarray:
             "measured_ranges", f"expected shape (..., {n_uavs}) to match uav_xy, got {d.shape}"
         )
     return _v.check_finite(d, "measured_ranges")
+
+
+@vectorize(cache=True)
+def noisy_range(d2, a, z):
+    r"""One noisy range of eq. (2) from its squared distance: :math:`\hat d = d + \sigma z`
+    with :math:`\sigma = d^2/\sqrt A` (the variance :math:`d^4/A` of Sec. II).
+
+    The range model written once: a NumPy ufunc (broadcasting) used by
+    :func:`measure_ranges`, and a compiled scalar function in the mission kernel.
+
+    Parameters
+    ----------
+    d2 : float or array_like
+        Squared slant range :math:`d^2`, m^2.
+    a : float or array_like
+        :math:`A` of the radar (:attr:`crlbswarm.Radar.snr_constant`).
+    z : float or array_like
+        Standard normal draw.
+
+    Returns
+    -------
+    float or ndarray
+        The measured range, m.
+    """
+    return math.sqrt(d2) + d2 / math.sqrt(a) * z
 
 
 def measure_ranges(
@@ -96,12 +123,10 @@ def measure_ranges(
     if not isinstance(rng, np.random.Generator):
         raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
     q, s, h = check_scene(uav_xy, target_xy, altitude)
-    a = _check_radar(radar, q.shape[-2])
+    a = check_radar(radar, q.shape[-2])
     diff = target_offsets(q, s)
     d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
-    d = np.sqrt(d2)
-    sigma = d2 / np.sqrt(a)  # sqrt(d^4 / A)
-    return d + sigma * rng.standard_normal(d.shape)
+    return np.asarray(noisy_range(d2, a, rng.standard_normal(d2.shape)))
 
 
 def negative_log_likelihood(
@@ -135,7 +160,7 @@ def negative_log_likelihood(
         :math:`\ell(\mathbf s)` (dimensionless up to the dropped constant).
     """
     q, s, h = check_scene(uav_xy, target_xy, altitude)
-    a = _check_radar(radar, q.shape[-2])
+    a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     diff = target_offsets(q, s)
     with np.errstate(over="ignore"):  # absurd magnitudes give inf, not a warning
@@ -392,7 +417,7 @@ def estimate_target(
         log-likelihood.
     """
     q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
-    a = _check_radar(radar, q.shape[-2])
+    a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     n_iter = _v.count(max_iter, "max_iter", 1)
     tolerance = _v.scalar(tol, "tol")

@@ -29,6 +29,7 @@ __all__ = [
     "AltitudeSweep",
     "ElevationCurve",
     "crlb_vs_altitude",
+    "formations_over_altitude",
     "optimal_elevation_curve",
 ]
 
@@ -126,7 +127,7 @@ class ElevationCurve:
         }
 
 
-def _formations_over_altitude(
+def formations_over_altitude(
     altitudes: object,
     n_uavs: int,
     radar: Radar,
@@ -136,10 +137,35 @@ def _formations_over_altitude(
     n_random: int,
     seed: int,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Validated altitudes (a copy) and F* and every benchmark over them, target at 0.
+    """F* and every benchmark formation over a range of altitudes, target at the origin.
 
-    Shapes: (K, M, 2) for the deterministic formations, (K, n_random, M, 2) for
-    ``random_disc`` (the same unit-disc draws scaled at every altitude).
+    Parameters
+    ----------
+    altitudes : array_like, shape (K,)
+        Altitudes, m.
+    n_uavs : int
+        Number of UAVs M.
+    radar : Radar
+        Link parameters (scalar fields).
+    fixed_radius : float
+        Radius of the fixed-radius polygon, m.
+    arc_span : float
+        Angular span of the arc, rad, in (0, pi].
+    disc_factor : float
+        Radius of the random disc as a multiple of r*.
+    n_random : int
+        Number of random formations per altitude.
+    seed : int
+        Seed of the random formations.
+
+    Returns
+    -------
+    altitudes : ndarray, shape (K,)
+        The validated altitudes (a copy).
+    formations : dict of str to ndarray
+        By :data:`FORMATION_LABELS` key: shape (K, M, 2) for the deterministic formations,
+        (K, n_random, M, 2) for ``random_disc`` (the same unit-disc draws scaled at every
+        altitude).
     """
     h = _v.positive(altitudes, "altitudes")
     if h.ndim != 1:
@@ -212,7 +238,7 @@ def crlb_vs_altitude(
     AltitudeSweep
         The data of Fig. 2.
     """
-    h, formations = _formations_over_altitude(
+    h, formations = formations_over_altitude(
         altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, n_random, seed
     )
     origin = np.zeros(2)

@@ -39,7 +39,7 @@ import numpy as np
 from . import _validation as _v
 from .errors import FieldError
 from .geometry import check_scene
-from .radar import Radar
+from .radar import Radar, check_radar
 
 __all__ = [
     "crlb",
@@ -85,22 +85,12 @@ def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.nda
     return a / d2 / d2 + 8.0 / d2
 
 
-def _check_radar(radar: Radar, n_uavs: int) -> np.ndarray | float:
-    if not isinstance(radar, Radar):
-        raise FieldError("radar", f"expected a crlbswarm.Radar, got {type(radar).__name__}")
-    if radar.n_uavs is not None and radar.n_uavs != n_uavs:
-        raise FieldError(
-            "radar", f"per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
-        )
-    return radar.snr_constant
-
-
 def _fim_entries(
     uav_xy: object, target_xy: object, altitude: object, radar: Radar
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)."""
     q, s, h = check_scene(uav_xy, target_xy, altitude)
-    a = _check_radar(radar, q.shape[-2])
+    a = check_radar(radar, q.shape[-2])
     # Contiguous per-axis offsets s - q_m, shape (..., M); the in-place updates below keep
     # the number of full-size temporaries small (this is the hot path of every sweep).
     dx = s[..., None, 0] - q[..., 0]

@@ -23,14 +23,19 @@ Stability of the two discrete-time linear laws (not in the paper; standard resul
 from __future__ import annotations
 
 import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
-import scipy.sparse as sp
 
 from . import _validation as _v
 from .errors import FieldError
+
+if TYPE_CHECKING:  # networkx and scipy.sparse are imported when a graph is built
+    import networkx as nx
+    import scipy.sparse as sp
 
 __all__ = [
     "GRAPH_KINDS",
@@ -40,8 +45,18 @@ __all__ = [
     "formation_step_limit",
 ]
 
-#: Graph kinds understood by :func:`communication_graph`.
-GRAPH_KINDS = ("ring", "complete", "path", "star", "random_geometric", "edges")
+#: Graph kinds understood by :func:`communication_graph`, each with the options it takes
+#: (the scenario's ``[graph]`` table is derived from this one declaration).
+GRAPH_KINDS: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {
+        "ring": (),
+        "complete": (),
+        "path": (),
+        "star": ("center",),
+        "random_geometric": ("radius", "seed"),
+        "edges": ("edges",),
+    }
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,6 +88,8 @@ class Adjacency:
         Adjacency
             The CSR adjacency.
         """
+        import networkx as nx
+
         n = graph.number_of_nodes()
         if set(graph.nodes) != set(range(n)):
             raise FieldError("graph", "nodes must be the UAV indices 0 .. M-1")
@@ -109,6 +126,8 @@ class Adjacency:
         scipy.sparse.csr_array, shape (M, M)
             The Laplacian, sparse.
         """
+        import scipy.sparse as sp
+
         n = self.n_nodes
         adj = sp.csr_array(
             (np.ones(self.indices.shape[0]), self.indices, self.indptr), shape=(n, n)
@@ -156,6 +175,8 @@ def communication_graph(
         For an unknown kind, missing or bad parameters, self-loops, nodes out of range, or a
         disconnected graph (the formation laws need a connected graph).
     """
+    import networkx as nx
+
     n = _v.count(n_uavs, "n_uavs", 2)
     if kind == "ring":
         graph = nx.cycle_graph(n)

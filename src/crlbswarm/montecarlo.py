@@ -21,7 +21,7 @@ from . import _validation as _v
 from .design import optimal_radius
 from .errors import FieldError
 from .estimation import estimate_target, measure_ranges
-from .experiments import FORMATION_LABELS, _formations_over_altitude
+from .experiments import FORMATION_LABELS, formations_over_altitude
 from .fisher import crlb
 from .radar import Radar
 
@@ -238,7 +238,7 @@ def estimator_vs_altitude(
     if altitudes is None:
         altitudes = np.geomspace(10.0, 3000.0, 12)
     n = _v.count(n_trials, "n_trials", 2)
-    h, formations = _formations_over_altitude(
+    h, formations = formations_over_altitude(
         altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed
     )
     formations["random_disc"] = formations["random_disc"][:, 0]

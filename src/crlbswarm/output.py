@@ -16,14 +16,79 @@ import os
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from .errors import FieldError
 
-__all__ = ["atomic_path", "json_text", "save_figure", "write_csv", "write_json", "write_text"]
+if TYPE_CHECKING:  # matplotlib is imported only by those who draw
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "atomic_path",
+    "check_output_folder",
+    "json_text",
+    "make_output_folder",
+    "save_figure",
+    "write_csv",
+    "write_json",
+    "write_text",
+]
+
+
+def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
+    """Fail early, creating nothing, if the folder ``path`` could not be created or written.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The folder (it may not exist yet).
+    field : str
+        The argument that named it, for the error.
+
+    Raises
+    ------
+    FieldError
+        If an existing part of the path is not a folder, or is not writable.
+    """
+    probe = Path(path)
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise FieldError(field, f"{str(probe)!r} exists and is not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise FieldError(field, f"cannot write in {str(probe)!r}")
+
+
+def make_output_folder(path: str | os.PathLike[str], field: str) -> Path:
+    """Create the folder ``path`` (and its parents) if missing.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The folder.
+    field : str
+        The argument that named it, for the error.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder.
+
+    Raises
+    ------
+    FieldError
+        If it cannot be created.
+    """
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FieldError(field, f"cannot create folder {str(out)!r}: {exc.strerror}") from exc
+    return out
 
 
 @contextlib.contextmanager

@@ -18,7 +18,7 @@ from matplotlib.patches import Circle, Polygon, Rectangle
 from .errors import FieldError
 from .experiments import FORMATION_LABELS, AltitudeSweep, ElevationCurve
 from .montecarlo import EstimatorSweep
-from .simulation import MissionResult
+from .results import MissionResult
 
 __all__ = [
     "mission_snapshot_steps",
@@ -139,7 +139,7 @@ def plot_optimal_elevation(curve: ElevationCurve, ax: Axes | None = None) -> Fig
 
 
 def _check_run(result: MissionResult, run: int) -> int:
-    return result._run_index(run)
+    return result.run_index(run)
 
 
 def passage_interval(result: MissionResult, run: int = 0) -> tuple[float, float] | None:

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,23 +35,16 @@ from .errors import FieldError
 __all__ = [
     "SPEED_OF_LIGHT",
     "Radar",
+    "RadarParameter",
+    "check_radar",
     "db_to_linear",
     "dbm_to_watts",
+    "radar_field_names",
+    "radar_parameters",
 ]
 
 #: Speed of light in vacuum, m/s (exact, SI definition).
 SPEED_OF_LIGHT = 299_792_458.0
-
-_FIELDS = (
-    "tx_power",
-    "noise_power",
-    "processing_gain",
-    "tx_gain",
-    "rx_gain",
-    "rcs",
-    "carrier_frequency",
-    "kappa",
-)
 
 
 def db_to_linear(value_db: float | np.ndarray) -> float | np.ndarray:
@@ -104,12 +99,77 @@ def _field_value(value: object, name: str) -> float | np.ndarray:
     return arr
 
 
+def _parameter(default: float, unit: str, doc: str, db: str = "", short: str = "") -> Any:
+    """Declare a radar field: its default (linear SI), unit, one line of doc, the unit of its
+    decibel form (``dBm``, ``dB``, ``dBi`` or ``dBsm``; none if empty) and a short name for
+    the command line. Everything else (the docstring, :meth:`Radar.from_db`, the scenario's
+    ``[radar]`` table, the CLI options) is derived from these declarations."""
+    return field(default=default, metadata={"unit": unit, "doc": doc, "db": db, "short": short})
+
+
+@dataclass(frozen=True)
+class RadarParameter:
+    """One declared field of :class:`Radar` (see :func:`radar_parameters`).
+
+    Parameters
+    ----------
+    name : str
+        Field name, e.g. ``"tx_power"``.
+    default : float
+        Default value, linear SI units.
+    unit : str
+        Unit of the linear value (empty for a pure ratio).
+    doc : str
+        One line of documentation (reStructuredText).
+    db_unit : str
+        Unit of the decibel form (``"dBm"``, ``"dB"``, ``"dBi"``, ``"dBsm"``), or empty.
+    short : str
+        Short name of the command-line option, or empty.
+    """
+
+    name: str
+    default: float
+    unit: str
+    doc: str
+    db_unit: str
+    short: str
+
+    @property
+    def label(self) -> str:
+        """The doc as a short plain-text label: no maths, up to the first colon, lower case
+        (``"transmit power per UAV"``)."""
+        text = re.sub(r"\s*:math:`[^`]*`", "", self.doc).split(":")[0].strip()
+        return text[:1].lower() + text[1:]
+
+    @property
+    def db_name(self) -> str:
+        """Name of the decibel form (``tx_power_dbm``), or empty."""
+        return f"{self.name}_{self.db_unit.lower()}" if self.db_unit else ""
+
+    def db_to_linear(self, value: object) -> np.ndarray:
+        """Convert the decibel form to linear SI units.
+
+        Parameters
+        ----------
+        value : float or array_like
+            Value in :attr:`db_unit`.
+
+        Returns
+        -------
+        ndarray
+            The linear value.
+        """
+        convert = dbm_to_watts if self.db_unit == "dBm" else db_to_linear
+        return np.asarray(convert(value))
+
+
 @dataclass(frozen=True, eq=False)
 class Radar:
-    r"""Parameters of the range-sensing link (paper Sec. II; defaults: PAPER_NOTES sec. 1).
+    r"""Parameters of the range-sensing link (paper Sec. II; defaults: the paper profile).
 
     The paper gives only :math:`p`, :math:`\sigma_0^2` and :math:`H`; the other defaults are
-    crlbswarm's "paper profile" and are used by every figure and every quoted number.
+    crlbswarm's "paper profile" (``docs/sensing-model.md``) and are used by every figure and
+    every quoted number.
 
     Each field is a positive number, or a 1-D array with one entry per UAV (per-UAV
     powers or gains). Array fields broadcast over the UAV axis of the positions passed
@@ -117,27 +177,11 @@ class Radar:
 
     Parameters
     ----------
-    tx_power : float or array_like, default 0.1
-        Transmit power per UAV :math:`p_m`, W.
-    noise_power : float or array_like, default 1e-12
-        Receiver noise power :math:`\sigma_0^2`, W (-90 dBm).
-    processing_gain : float or array_like, default 1000
-        Processing gain :math:`G_p`, linear (30 dB).
-    tx_gain : float or array_like, default 1
-        Transmit antenna gain :math:`G_T`, linear (0 dBi).
-    rx_gain : float or array_like, default 1
-        Receive antenna gain :math:`G_r`, linear (0 dBi).
-    rcs : float or array_like, default 1
-        Radar cross section of the target :math:`\sigma_\mathrm{rcs}`, m^2.
-    carrier_frequency : float or array_like, default 5.8e9
-        Carrier frequency :math:`f_c`, Hz.
-    kappa : float or array_like, default 1
-        Range-estimation constant :math:`\kappa`: the range variance at unit SNR, which
-        depends on the waveform and the estimator (m^2; the paper leaves it unnamed).
+    {parameters}
 
     Raises
     ------
-    ValueError
+    FieldError
         If a field is not positive and finite, or is not a number or a 1-D array.
 
     Examples
@@ -150,19 +194,38 @@ class Radar:
     True
     """
 
-    tx_power: float | np.ndarray = 0.1
-    noise_power: float | np.ndarray = 1e-12
-    processing_gain: float | np.ndarray = 1000.0
-    tx_gain: float | np.ndarray = 1.0
-    rx_gain: float | np.ndarray = 1.0
-    rcs: float | np.ndarray = 1.0
-    carrier_frequency: float | np.ndarray = 5.8e9
-    kappa: float | np.ndarray = 1.0
+    tx_power: float | np.ndarray = _parameter(
+        0.1, "W", r"Transmit power per UAV :math:`p_m`", db="dBm", short="power"
+    )
+    noise_power: float | np.ndarray = _parameter(
+        1e-12, "W", r"Receiver noise power :math:`\sigma_0^2`", db="dBm", short="noise"
+    )
+    processing_gain: float | np.ndarray = _parameter(
+        1000.0, "", r"Processing gain :math:`G_p`", db="dB"
+    )
+    tx_gain: float | np.ndarray = _parameter(
+        1.0, "", r"Transmit antenna gain :math:`G_T`", db="dBi"
+    )
+    rx_gain: float | np.ndarray = _parameter(
+        1.0, "", r"Receive antenna gain :math:`G_r`", db="dBi"
+    )
+    rcs: float | np.ndarray = _parameter(
+        1.0, "m^2", r"Radar cross section of the target :math:`\sigma_\mathrm{rcs}`", db="dBsm"
+    )
+    carrier_frequency: float | np.ndarray = _parameter(
+        5.8e9, "Hz", r"Carrier frequency :math:`f_c`", short="frequency"
+    )
+    kappa: float | np.ndarray = _parameter(
+        1.0,
+        "m^2",
+        r"Range-estimation constant :math:`\kappa`: the range variance at unit SNR, which "
+        "depends on the waveform and the estimator (the paper leaves it unnamed)",
+    )
     _snr_constant: float | np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         lengths = set()
-        for name in _FIELDS:
+        for name in radar_field_names():
             value = _field_value(getattr(self, name), name)
             object.__setattr__(self, name, value)
             if isinstance(value, np.ndarray):
@@ -177,67 +240,61 @@ class Radar:
         if not np.all(np.isfinite(a) & (np.asarray(a) > 0)):
             raise FieldError(
                 "radar",
-                "A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number "
-                f"({a!r}); the parameters are out of range",
+                f"A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number ({a!r}); "
+                "the parameters are out of range",
             )
         a = float(a) if np.ndim(a) == 0 else _readonly(a)
         object.__setattr__(self, "_snr_constant", a)
 
     # -- constructors -------------------------------------------------------------
     @classmethod
-    def from_db(
-        cls,
-        tx_power_dbm: float | np.ndarray = 20.0,
-        noise_power_dbm: float | np.ndarray = -90.0,
-        processing_gain_db: float | np.ndarray = 30.0,
-        tx_gain_dbi: float | np.ndarray = 0.0,
-        rx_gain_dbi: float | np.ndarray = 0.0,
-        rcs_dbsm: float | np.ndarray = 0.0,
-        carrier_frequency: float | np.ndarray = 5.8e9,
-        kappa: float | np.ndarray = 1.0,
-    ) -> Radar:
-        """Build a :class:`Radar` from decibel values.
+    def from_db(cls, **values: Any) -> Radar:
+        """Build a :class:`Radar` from decibel values (and linear ones).
+
+        Each keyword is a field's decibel form or the field itself in linear SI units;
+        fields not given keep their defaults (the paper profile).
 
         Parameters
         ----------
-        tx_power_dbm : float or array_like, default 20
-            Transmit power per UAV, dBm (20 dBm = 0.1 W).
-        noise_power_dbm : float or array_like, default -90
-            Receiver noise power, dBm.
-        processing_gain_db : float or array_like, default 30
-            Processing gain, dB.
-        tx_gain_dbi : float or array_like, default 0
-            Transmit antenna gain, dBi.
-        rx_gain_dbi : float or array_like, default 0
-            Receive antenna gain, dBi.
-        rcs_dbsm : float or array_like, default 0
-            Radar cross section, dBsm (dB relative to 1 m^2).
-        carrier_frequency : float or array_like, default 5.8e9
-            Carrier frequency, Hz (linear).
-        kappa : float or array_like, default 1
-            Range-estimation constant (linear).
+        {db_parameters}
 
         Returns
         -------
         Radar
             The same link in linear SI units.
+
+        Raises
+        ------
+        FieldError
+            For an unknown keyword, a field given twice (linear and in dB), or a value that
+            is not finite or out of range in linear units; the field is ``radar.<keyword>``.
+
+        Examples
+        --------
+        >>> from crlbswarm import Radar
+        >>> Radar.from_db(tx_power_dbm=20.0) == Radar()
+        True
         """
-        linear = {}
-        for name, value, field_name, convert in (
-            ("tx_power_dbm", tx_power_dbm, "tx_power", dbm_to_watts),
-            ("noise_power_dbm", noise_power_dbm, "noise_power", dbm_to_watts),
-            ("processing_gain_db", processing_gain_db, "processing_gain", db_to_linear),
-            ("tx_gain_dbi", tx_gain_dbi, "tx_gain", db_to_linear),
-            ("rx_gain_dbi", rx_gain_dbi, "rx_gain", db_to_linear),
-            ("rcs_dbsm", rcs_dbsm, "rcs", db_to_linear),
-        ):
-            _v.finite(value, f"radar.{name}")
-            with np.errstate(over="ignore", under="ignore"):
-                lin = convert(value)
-            if not np.all(np.isfinite(lin) & (lin > 0)):
-                raise FieldError(f"radar.{name}", f"{value!r} is out of range in linear units")
-            linear[field_name] = lin
-        return cls(**linear, carrier_frequency=carrier_frequency, kappa=kappa)
+        linear: dict[str, Any] = {}
+        by_db = {p.db_name: p for p in radar_parameters() if p.db_unit}
+        for key, value in values.items():
+            if key in by_db:
+                param = by_db[key]
+                _v.finite(value, f"radar.{key}")
+                with np.errstate(over="ignore", under="ignore"):
+                    lin = param.db_to_linear(value)
+                if not np.all(np.isfinite(lin) & (lin > 0)):
+                    raise FieldError(f"radar.{key}", f"{value!r} is out of range in linear units")
+                name = param.name
+            elif key in radar_field_names():
+                lin, name = value, key
+            else:
+                known = ", ".join([*by_db, *radar_field_names()])
+                raise FieldError(f"radar.{key}", f"unknown parameter (known: {known})")
+            if name in linear:
+                raise FieldError(f"radar.{key}", f"{name} is given twice (linear and in dB)")
+            linear[name] = lin
+        return cls(**linear)
 
     def replace(self, **changes: Any) -> Radar:
         """Return a copy with some fields changed (validated like the constructor).
@@ -258,12 +315,12 @@ class Radar:
     @property
     def per_uav(self) -> bool:
         """Whether any field holds one value per UAV."""
-        return any(isinstance(getattr(self, name), np.ndarray) for name in _FIELDS)
+        return any(isinstance(getattr(self, name), np.ndarray) for name in radar_field_names())
 
     @property
     def n_uavs(self) -> int | None:
         """Length of the per-UAV fields, or ``None`` if every field is a scalar."""
-        for name in _FIELDS:
+        for name in radar_field_names():
             value = getattr(self, name)
             if isinstance(value, np.ndarray):
                 return int(value.shape[0])
@@ -320,7 +377,7 @@ class Radar:
             Field name to value, linear SI units.
         """
         out: dict[str, float | list[float]] = {}
-        for name in _FIELDS:
+        for name in radar_field_names():
             value = getattr(self, name)
             out[name] = value.tolist() if isinstance(value, np.ndarray) else float(value)
         return out
@@ -329,10 +386,126 @@ class Radar:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Radar):
             return NotImplemented
-        return all(np.array_equal(getattr(self, name), getattr(other, name)) for name in _FIELDS)
+        return all(
+            np.array_equal(getattr(self, name), getattr(other, name))
+            for name in radar_field_names()
+        )
 
     def __hash__(self) -> int:
-        return hash(tuple(tuple(np.ravel(getattr(self, name)).tolist()) for name in _FIELDS))
+        return hash(
+            tuple(tuple(np.ravel(getattr(self, name)).tolist()) for name in radar_field_names())
+        )
+
+
+def check_radar(radar: object, n_uavs: int) -> float | np.ndarray:
+    """The constant :math:`A` of ``radar`` for ``n_uavs`` UAVs, after checking both.
+
+    Parameters
+    ----------
+    radar : Radar
+        The radar.
+    n_uavs : int
+        Number of UAVs its per-UAV fields must match.
+
+    Returns
+    -------
+    float or ndarray, shape (n_uavs,)
+        :attr:`Radar.snr_constant`.
+
+    Raises
+    ------
+    FieldError
+        If ``radar`` is not a :class:`Radar` or its per-UAV fields have another length.
+    """
+    if not isinstance(radar, Radar):
+        raise FieldError("radar", f"expected a crlbswarm.Radar, got {type(radar).__name__}")
+    if radar.n_uavs is not None and radar.n_uavs != n_uavs:
+        raise FieldError(
+            "radar", f"per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
+        )
+    return radar.snr_constant
+
+
+def radar_parameters() -> tuple[RadarParameter, ...]:
+    """The declared fields of :class:`Radar`, in order, with default, unit and doc.
+
+    Returns
+    -------
+    tuple of RadarParameter
+        One entry per field.
+    """
+    return _PARAMETERS
+
+
+def radar_field_names() -> tuple[str, ...]:
+    """Names of the fields of :class:`Radar`, in order.
+
+    Returns
+    -------
+    tuple of str
+        ``("tx_power", "noise_power", ...)``.
+    """
+    return _NAMES
+
+
+_PARAMETERS = tuple(
+    RadarParameter(
+        name=f.name,
+        default=f.default,
+        unit=f.metadata["unit"],
+        doc=f.metadata["doc"],
+        db_unit=f.metadata["db"],
+        short=f.metadata["short"],
+    )
+    for f in dataclasses.fields(Radar)
+    if f.init
+)
+_NAMES = tuple(p.name for p in _PARAMETERS)
+
+
+def _fill(doc: str | None, placeholder: str, entries: list[tuple[str, str, str]]) -> str:
+    """Replace the line ``{placeholder}`` of a docstring by a numpydoc Parameters block."""
+    text = doc or ""
+    line = next(x for x in text.splitlines() if x.strip() == placeholder)
+    indent = line[: len(line) - len(line.lstrip())]
+    block = []
+    for name, kind, description in entries:
+        block.append(f"{indent}{name} : {kind}")
+        block += textwrap.wrap(
+            description, 92 - len(indent), initial_indent=indent + "    ",
+            subsequent_indent=indent + "    ", break_on_hyphens=False,
+        )  # fmt: skip
+    return text.replace(line, "\n".join(block))
+
+
+def _default_text(p: RadarParameter) -> str:
+    """``default 1e-12 (-90 dBm)``: the default, and its decibel form where there is one."""
+    text = f"default {p.default:g}"
+    if p.db_unit:
+        db = 10.0 * math.log10(p.default) + (30.0 if p.db_unit == "dBm" else 0.0)
+        text += f" ({db:g} {p.db_unit})"
+    return text
+
+
+def _with_unit(p: RadarParameter) -> str:
+    return f"{p.doc}, {p.unit or 'linear'}."
+
+
+Radar.__doc__ = _fill(
+    Radar.__doc__,
+    "{parameters}",
+    [(p.name, f"float or array_like, {_default_text(p)}", _with_unit(p)) for p in _PARAMETERS],
+)
+Radar.from_db.__func__.__doc__ = _fill(  # type: ignore[attr-defined]
+    Radar.from_db.__doc__,
+    "{db_parameters}",
+    [
+        (p.db_name, "float or array_like, optional", f"{p.doc}, {p.db_unit} (or ``{p.name}``).")
+        for p in _PARAMETERS
+        if p.db_unit
+    ]
+    + [(p.name, "float or array_like, optional", _with_unit(p)) for p in _PARAMETERS],
+)
 
 
 def _readonly(arr: np.ndarray) -> np.ndarray:

@@ -52,8 +52,10 @@ from .radar import Radar
 __all__ = [
     "motion_matrices",
     "posterior_crlb",
+    "predict",
     "summed_range_information",
     "target_trajectories",
+    "update",
 ]
 
 
@@ -264,4 +266,169 @@ def posterior_crlb(
             info = info.copy()
             info[:2, :2] += fim[k]
         out[k] = np.trace(np.linalg.inv(info)[:2, :2])
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# The filter: Kalman prediction and iterated-EKF range update, as pure compiled functions
+# ---------------------------------------------------------------------------------------
+@njit(cache=True)
+def predict(x, P, F, Q):
+    r"""Kalman prediction with the target's motion model.
+
+    .. math:: \mathbf x^- = \mathbf F \mathbf x, \qquad
+              \mathbf P^- = \mathbf F \mathbf P \mathbf F^\top + \mathbf Q
+
+    Compiled (called by the mission kernel every step); no input checks.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        State estimate (position, and velocity for a moving target).
+    P : ndarray, shape (n, n)
+        Its covariance.
+    F : ndarray, shape (n, n)
+        Transition matrix (:func:`motion_matrices`, top-left n x n block).
+    Q : ndarray, shape (n, n)
+        Process-noise covariance (same block).
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        Predicted state.
+    P : ndarray, shape (n, n)
+        Predicted covariance.
+    """
+    n = x.shape[0]
+    x_new = np.zeros(n)
+    for r in range(n):
+        for c in range(n):
+            x_new[r] += F[r, c] * x[c]
+    fp = np.zeros((n, n))
+    for r in range(n):
+        for c in range(n):
+            for j in range(n):
+                fp[r, c] += F[r, j] * P[j, c]
+    p_new = np.empty((n, n))
+    for r in range(n):
+        for c in range(n):
+            acc = Q[r, c]
+            for j in range(n):
+                acc += fp[r, j] * F[c, j]
+            p_new[r, c] = acc
+    return x_new, p_new
+
+
+@njit(cache=True)
+def update(x, P, uav_xy, ranges, altitude, snr_constant, n_iter):
+    r"""Iterated EKF update of the target estimate with one range from every UAV.
+
+    Gauss-Newton on the MAP objective of the prior and the ranges of eq. (2), in
+    information form; each range is weighted by :math:`1/\sigma_m^2 = A/d_m^4` at the
+    current iterate (Bell and Cathey's iterated EKF):
+
+    .. math:: \mathbf x_{i+1} = \mathbf x_i + (\mathbf P^{-1} + \mathbf H_i^\top
+              \mathbf W_i \mathbf H_i)^{-1} \bigl[\mathbf H_i^\top \mathbf W_i
+              (\hat{\mathbf d} - \mathbf d(\mathbf x_i)) - \mathbf P^{-1}(\mathbf x_i -
+              \mathbf x)\bigr],
+
+    with :math:`\mathbf H_i` the Jacobian of the ranges (horizontal line-of-sight unit
+    vectors, eq. (4); zero in the velocity columns). The updated covariance is the inverse
+    of the last information matrix. Compiled (called by the mission kernel); no checks.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Prior state (position first), m (and m/s).
+    P : ndarray, shape (n, n)
+        Prior covariance.
+    uav_xy : ndarray, shape (M, 2)
+        Horizontal UAV positions, m.
+    ranges : ndarray, shape (M,)
+        Measured ranges, m.
+    altitude : float
+        Flight altitude H, m (the target is on the ground).
+    snr_constant : float
+        :math:`A` of the radar (:attr:`crlbswarm.Radar.snr_constant`).
+    n_iter : int
+        Gauss-Newton iterations (the mission kernel uses 3).
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        Updated state.
+    P : ndarray, shape (n, n)
+        Updated covariance.
+    """
+    n = x.shape[0]
+    info0 = _inverse_small(P, n)
+    xi = x.copy()
+    info = np.zeros((n, n))
+    h2 = altitude * altitude
+    for _ in range(n_iter):
+        info[:, :] = info0
+        rhs = np.zeros(n)
+        # - P^-1 (x_i - x_prior)
+        for r in range(n):
+            for c in range(n):
+                rhs[r] -= info0[r, c] * (xi[c] - x[c])
+        for m in range(uav_xy.shape[0]):
+            dx = xi[0] - uav_xy[m, 0]
+            dy = xi[1] - uav_xy[m, 1]
+            d2 = dx * dx + dy * dy + h2
+            d = math.sqrt(d2)
+            w = snr_constant / (d2 * d2)  # 1 / sigma^2 at the iterate
+            hx = dx / d
+            hy = dy / d
+            res = ranges[m] - d
+            info[0, 0] += w * hx * hx
+            info[0, 1] += w * hx * hy
+            info[1, 0] += w * hx * hy
+            info[1, 1] += w * hy * hy
+            rhs[0] += w * hx * res
+            rhs[1] += w * hy * res
+        step = _solve_small(info, rhs, n)
+        for r in range(n):
+            xi[r] += step[r]
+    return xi, _inverse_small(info, n)
+
+
+@njit(cache=True)
+def _solve_small(a, b, n):
+    """Solve the n x n system a x = b (n <= 4) by Gaussian elimination with pivoting."""
+    m = a[:n, :n].copy()
+    x = b[:n].copy()
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(m[r, c]) > abs(m[piv, c]):
+                piv = r
+        if piv != c:
+            for j in range(n):
+                m[c, j], m[piv, j] = m[piv, j], m[c, j]
+            x[c], x[piv] = x[piv], x[c]
+        for r in range(c + 1, n):
+            f = m[r, c] / m[c, c]
+            for j in range(c, n):
+                m[r, j] -= f * m[c, j]
+            x[r] -= f * x[c]
+    for c in range(n - 1, -1, -1):
+        acc = x[c]
+        for j in range(c + 1, n):
+            acc -= m[c, j] * x[j]
+        x[c] = acc / m[c, c]
+    return x
+
+
+@njit(cache=True)
+def _inverse_small(a, n):
+    """Inverse of the n x n matrix a (n <= 4), column by column with :func:`_solve_small`."""
+    out = np.zeros((n, n))
+    e = np.zeros(n)
+    for j in range(n):
+        e[:] = 0.0
+        e[j] = 1.0
+        col = _solve_small(a, e, n)
+        for i in range(n):
+            out[i, j] = col[i]
     return out

@@ -1,0 +1,218 @@
+"""Configuration files: the shared pydantic base, one-line errors, TOML in and out.
+
+Scenarios (:mod:`crlbswarm.scenario`), the parameter sets they are made of (the control gains
+of :mod:`crlbswarm.control`) and campaign specs (:mod:`crlbswarm.campaign`) are pydantic
+models built on :class:`ConfigModel`: frozen, strict, unknown keys refused. This module reads
+them from TOML text, turns pydantic's errors into one :class:`~crlbswarm.errors.ConfigError`
+line naming the dotted field, and writes a model back as TOML, each value commented with its
+field's description.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from .errors import ConfigError, FieldError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["ConfigModel", "describe", "model_to_toml", "read_toml", "read_toml_file", "validate"]
+
+Model = TypeVar("Model", bound=BaseModel)
+
+
+class ConfigModel(BaseModel):
+    """Base of every configuration model: frozen, strict types, unknown keys refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+def read_toml(text: str, source: str, error: type[ConfigError] = ConfigError) -> dict[str, Any]:
+    """Parse TOML text.
+
+    Parameters
+    ----------
+    text : str
+        The document.
+    source : str
+        Name of the document in error messages (a file name).
+    error : type, default ConfigError
+        The error to raise (a subclass of :class:`~crlbswarm.errors.ConfigError`).
+
+    Returns
+    -------
+    dict
+        The parsed document.
+
+    Raises
+    ------
+    ConfigError
+        If the text is not valid TOML.
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(source, "", f"invalid TOML: {exc}") from None
+
+
+def read_toml_file(path: str | Path, field: str) -> tuple[str, dict[str, Any]]:
+    """Read and parse a TOML file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    field : str
+        The argument or field that named the file, for error messages.
+
+    Returns
+    -------
+    text : str
+        The file's text.
+    data : dict
+        The parsed document.
+
+    Raises
+    ------
+    FieldError
+        If the file cannot be read (naming ``field``).
+    ConfigError
+        If it is not valid TOML.
+    """
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FieldError(field, f"cannot read {str(path)!r}: {exc}") from None
+    return text, read_toml(text, str(path))
+
+
+def validate(
+    model: type[Model], data: Any, source: str, error: type[ConfigError] = ConfigError
+) -> Model:
+    """Validate ``data`` as ``model``; every problem in one line.
+
+    Parameters
+    ----------
+    model : type
+        A pydantic model class.
+    data : dict
+        Nested dictionary as read from TOML.
+    source : str
+        Name of the data in error messages.
+    error : type, default ConfigError
+        The error to raise (a subclass of :class:`~crlbswarm.errors.ConfigError`).
+
+    Returns
+    -------
+    model
+        The validated instance.
+
+    Raises
+    ------
+    ConfigError
+        With the dotted path of the first offending field and every problem, ``"; "``-joined.
+    """
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        problems = describe(exc)
+        field, first = problems[0]
+        rest = [f"{f}: {r}" if f else r for f, r in problems[1:]]
+        raise error(source, field, "; ".join([first, *rest])) from None
+
+
+def describe(exc: ValidationError) -> list[tuple[str, str]]:
+    """The problems of a pydantic error as ``(dotted field, reason)`` pairs.
+
+    A validator that raises :class:`~crlbswarm.errors.FieldError` names its field itself
+    (as a full dotted path); otherwise the field is pydantic's location of the error.
+
+    Parameters
+    ----------
+    exc : pydantic.ValidationError
+        The error.
+
+    Returns
+    -------
+    list of (str, str)
+        One pair per problem, in pydantic's order.
+    """
+    out = []
+    for err in exc.errors(include_url=False):
+        cause = (err.get("ctx") or {}).get("error")
+        if isinstance(cause, FieldError):
+            out.append((cause.field, cause.reason))
+            continue
+        loc = [str(p) for p in err["loc"] if not str(p).startswith("function-")]
+        # Drop the tag pydantic inserts after a list index of a tagged union (obstacles.1.circle).
+        loc = [p for i, p in enumerate(loc) if not (i and loc[i - 1].isdigit() and p in _TAGS)]
+        msg = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "missing":
+            msg = "missing required field"
+        elif err["type"] == "extra_forbidden":
+            msg = "unknown field"
+        elif "input" in err and not isinstance(err["input"], dict | list):
+            msg = f"{msg} (got {err['input']!r})"
+        out.append((".".join(loc), msg))
+    return out
+
+
+#: Tags of the tagged unions of the scenario schema (obstacle types).
+_TAGS = ("rectangle", "circle")
+
+
+def model_to_toml(model: BaseModel, header: str) -> str:
+    """A model as a TOML document, each value commented with its field's description.
+
+    Sub-models become tables, lists of sub-models arrays of tables; ``None`` values are
+    left out (they mean "default").
+
+    Parameters
+    ----------
+    model : pydantic.BaseModel
+        The model.
+    header : str
+        A comment line at the top of the document.
+
+    Returns
+    -------
+    str
+        TOML text; validating it again gives an equal model.
+    """
+    import tomlkit
+
+    def commented(value: Any, owner: BaseModel, key: str) -> Any:
+        item = tomlkit.item(value)
+        description = type(owner).model_fields[key].description
+        if description:
+            item.comment(description)
+        return item
+
+    doc = tomlkit.document()
+    doc.add(tomlkit.comment(header))
+    for key, value in model.model_dump(exclude_none=True).items():
+        sub = getattr(model, key)
+        if isinstance(sub, BaseModel):
+            table = tomlkit.table()
+            for sub_key, sub_value in value.items():
+                table.add(sub_key, commented(sub_value, sub, sub_key))
+            doc.add(tomlkit.nl())
+            doc.add(key, table)
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            array = tomlkit.aot()
+            for item in value:
+                array.append(tomlkit.item(item))
+            doc.add(tomlkit.nl())
+            doc.add(key, array)
+        elif isinstance(value, list) and not value and key == "obstacles":
+            continue  # an empty array of tables is written as nothing
+        else:
+            doc.add(key, commented(value, model, key))
+    return tomlkit.dumps(doc)

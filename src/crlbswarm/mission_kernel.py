@@ -1,0 +1,312 @@
+r"""The compiled mission: one step of the distributed controller, equation by equation.
+
+Every law is called from the module that owns it, never re-written here: the control laws
+from :mod:`crlbswarm.control`, the obstacle clearance from :mod:`crlbswarm.obstacles`, the
+smallest separation from :mod:`crlbswarm.spatial`, the range model from
+:mod:`crlbswarm.estimation` and the filter from :mod:`crlbswarm.tracking`. Per step
+:math:`k` (all UAVs in parallel, each using only its neighbours' information, except two
+formation-wide quantities: the scaling factor :math:`\eta_k`, global in the paper too, and
+the formation centroid that the leader uses to steer the formation off obstacles):
+
+0. :func:`sense_target`: with sensing in the loop, every ``measure_every`` steps the UAVs
+   measure their ranges (eq. (2)) and the iterated EKF fuses them; the formation's goal is
+   then the estimate instead of the true target (not in the paper);
+1. the leader computes its reference velocity :math:`\mathbf v^*_k` toward its slot of
+   :math:`F^*` over the target (:func:`crlbswarm.control.reference_velocity`), with the
+   target's (estimated) velocity as feedforward;
+2. :func:`control_step`: each UAV computes its formation input and obstacle repulsion,
+   eqs. (18)-(19), and moves by the motion model of eq. (3); the cost of eq. (15) is
+   recorded; the followers update their velocity estimates by the corrected consensus,
+   eq. (14); :math:`\eta` steps toward the free-width rule at a limited rate;
+3. the filter predicts the target state with its motion model.
+
+The driver, :func:`crlbswarm.simulate`, prepares the arrays and calls :func:`run_batch`,
+which runs the runs of a batch in parallel threads; each run uses only its own inputs, so
+run :math:`b` is bit-identical to the single run with the same seed.
+
+Adding a control law: call it in :func:`control_step`; its gains come with the
+:class:`~crlbswarm.control.ControlGains` tuple.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from .control import (
+    consensus_update,
+    control_cost,
+    eta_goal,
+    eta_rate_limit,
+    formation_update,
+    motion_model,
+    reference_velocity,
+)
+from .estimation import noisy_range
+from .obstacles import clearance_at, repulsion_at
+from .spatial import min_separation
+from .tracking import predict, update
+
+__all__ = [
+    "DIVERGENCE_LIMIT",
+    "FILTER_ITERATIONS",
+    "MissionConstants",
+    "RunInputs",
+    "RunOutputs",
+    "SceneArrays",
+    "control_step",
+    "run_batch",
+    "run_mission",
+    "sense_target",
+]
+
+#: Positions beyond this distance from the origin (m) count as a diverged run.
+DIVERGENCE_LIMIT = 1.0e6
+
+#: Gauss-Newton iterations of the filter's range update.
+FILTER_ITERATIONS = 3
+
+
+class MissionConstants(NamedTuple):
+    """Scalars of a mission derived from its scenario (the gains come separately).
+
+    Parameters
+    ----------
+    dt : float
+        Time step :math:`\\Delta T`, s.
+    leader : int
+        Index of the leader.
+    radius : float
+        Radius of :math:`F^*` around the target, m.
+    altitude : float
+        Flight altitude, m.
+    snr_constant : float
+        :math:`A` of the radar.
+    estimate : bool
+        Sensing in the loop (the goal is the filter's estimate).
+    measure_every : int
+        Ranges are measured every this many steps.
+    """
+
+    dt: float
+    leader: int
+    radius: float
+    altitude: float
+    snr_constant: float
+    estimate: bool
+    measure_every: int
+
+
+class SceneArrays(NamedTuple):
+    """Arrays shared by every run of a batch.
+
+    Parameters
+    ----------
+    delta : ndarray, shape (M, 2)
+        Slot offsets of :math:`F^*` from the target, m.
+    indptr : ndarray of int64, shape (M+1,)
+        CSR row pointers of the communication graph.
+    indices : ndarray of int64
+        CSR neighbour indices.
+    rects : ndarray, shape (R, 4)
+        Rectangles.
+    circles : ndarray, shape (C, 3)
+        Circles.
+    f_mat : ndarray, shape (n, n)
+        Transition matrix of the target's motion model (n = 2 static, 4 moving).
+    q_mat : ndarray, shape (n, n)
+        Its process-noise covariance.
+    p0 : ndarray, shape (n, n)
+        Prior covariance of the filter.
+    """
+
+    delta: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    rects: np.ndarray
+    circles: np.ndarray
+    f_mat: np.ndarray
+    q_mat: np.ndarray
+    p0: np.ndarray
+
+
+class RunInputs(NamedTuple):
+    """The random inputs of one run (drawn by the driver from the run's seed).
+
+    Parameters
+    ----------
+    noise : ndarray, shape (K, M, 2)
+        Motion disturbance :math:`\\mathbf n_{m,k}`, m.
+    range_noise : ndarray, shape (K+1, M)
+        Standard normal draws of the range noise.
+    target : ndarray, shape (K+1, 2)
+        True target position, m.
+    target_velocity : ndarray, shape (K+1, 2)
+        True target velocity, m/s.
+    x0 : ndarray, shape (n,)
+        Prior mean of the filter.
+    """
+
+    noise: np.ndarray
+    range_noise: np.ndarray
+    target: np.ndarray
+    target_velocity: np.ndarray
+    x0: np.ndarray
+
+
+class RunOutputs(NamedTuple):
+    """The arrays one run writes (``q[0]`` and ``eta[0]`` hold the start on entry).
+
+    Parameters
+    ----------
+    q : ndarray, shape (K+1, M, 2)
+        Positions, m.
+    v : ndarray, shape (K+1, M, 2)
+        Consensus velocities, m/s (``v[0]`` zero on entry).
+    v_ref : ndarray, shape (K+1, 2)
+        Leader's reference velocity, m/s.
+    eta : ndarray, shape (K+1,)
+        Scaling factor.
+    clearance : ndarray, shape (K+1,)
+        Smallest obstacle clearance, m.
+    separation : ndarray, shape (K+1,)
+        Smallest distance between two UAVs, m.
+    cost : ndarray, shape (K,)
+        Cost of eq. (15).
+    estimate : ndarray, shape (K+1, 2)
+        Filter estimate (sensing in the loop).
+    estimate_variance : ndarray, shape (K+1,)
+        Trace of its position covariance, m^2.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    v_ref: np.ndarray
+    eta: np.ndarray
+    clearance: np.ndarray
+    separation: np.ndarray
+    cost: np.ndarray
+    estimate: np.ndarray
+    estimate_variance: np.ndarray
+
+
+@njit(cache=True)
+def sense_target(q, s_true, z, x, p_cov, ranges, const):
+    """Step 0: the UAVs measure their ranges to the true target (eq. (2), the range model
+    of :func:`crlbswarm.estimation.noisy_range`) and the filter fuses them
+    (:func:`crlbswarm.tracking.update`). Returns the updated ``(x, P)``."""
+    h2 = const.altitude * const.altitude
+    for m in range(q.shape[0]):
+        dx = s_true[0] - q[m, 0]
+        dy = s_true[1] - q[m, 1]
+        ranges[m] = noisy_range(dx * dx + dy * dy + h2, const.snr_constant, z[m])
+    return update(x, p_cov, q, ranges, const.altitude, const.snr_constant, FILTER_ITERATIONS)
+
+
+@njit(cache=True)
+def control_step(k, q, q_next, v, v_next, vref, eta, u, cx, cy, sx, sy, out, inp, scene, ctl,
+                 rule, const):  # fmt: skip
+    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3), the cost (15), the
+    consensus (14) and the next eta. Returns False if a position ran away."""
+    dt = const.dt
+    formation_update(q, scene.delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
+    noise = inp.noise[k]
+    for m in range(q.shape[0]):
+        rx, ry = repulsion_at(
+            q[m, 0], q[m, 1], scene.rects, scene.circles, ctl.repulsion_gain,
+            ctl.safety_radius, ctl.repulsion_max_step,
+        )  # fmt: skip
+        q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rx, v[m, 0], dt, noise[m, 0])
+        q_next[m, 1] = motion_model(q[m, 1], u[m, 1], ry, v[m, 1], dt, noise[m, 1])
+        if not (abs(q_next[m, 0]) < DIVERGENCE_LIMIT and abs(q_next[m, 1]) < DIVERGENCE_LIMIT):
+            return False
+    out.cost[k] = control_cost(q, q_next, scene.delta, vref, dt, scene.indptr, scene.indices)
+    consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
+    if rule.enabled:
+        goal = eta_goal(
+            cx, cy, sx, sy, const.radius, scene.rects, scene.circles,
+            rule.margin, rule.lookahead, rule.samples, rule.minimum,
+        )  # fmt: skip
+        out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * dt)
+    else:
+        out.eta[k + 1] = 1.0
+    return True
+
+
+@njit(cache=True)
+def run_mission(out, inp, scene, ctl, rule, const):
+    """One run from ``out.q[0]`` to the end of ``inp.noise``; returns -1, or the step at
+    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`)."""
+    k_steps = inp.noise.shape[0]
+    m_uavs = out.q.shape[1]
+    leader = const.leader
+    u = np.empty((m_uavs, 2))
+    vref = np.empty(2)
+    ranges = np.empty(m_uavs)
+    x = inp.x0.copy()
+    p_cov = scene.p0.copy()
+    moving = x.shape[0] == 4
+    for k in range(k_steps + 1):
+        q = out.q[k]
+        eta = out.eta[k]
+        # The formation's goal: the UAVs' own estimate of the target, or the truth.
+        if const.estimate:
+            if k % const.measure_every == 0:
+                x, p_cov = sense_target(q, inp.target[k], inp.range_noise[k], x, p_cov, ranges,
+                                        const)  # fmt: skip
+            sx, sy = x[0], x[1]
+            tvx, tvy = (x[2], x[3]) if moving else (0.0, 0.0)
+            out.estimate[k, 0] = sx
+            out.estimate[k, 1] = sy
+            out.estimate_variance[k] = p_cov[0, 0] + p_cov[1, 1]
+        else:
+            sx, sy = inp.target[k, 0], inp.target[k, 1]
+            tvx, tvy = inp.target_velocity[k, 0], inp.target_velocity[k, 1]
+        cx = 0.0
+        cy = 0.0
+        for m in range(m_uavs):
+            cx += q[m, 0]
+            cy += q[m, 1]
+        cx /= m_uavs
+        cy /= m_uavs
+        # Step 1: the leader's reference velocity toward its slot over the goal.
+        vref[0], vref[1] = reference_velocity(
+            q[leader, 0], q[leader, 1], sx + eta * scene.delta[leader, 0],
+            sy + eta * scene.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
+            tvx, tvy, scene.rects, scene.circles, ctl.repulsion_gain, ctl.safety_radius,
+            eta * const.radius if ctl.formation_steering else 0.0, const.dt,
+        )  # fmt: skip
+        out.v_ref[k, 0] = vref[0]
+        out.v_ref[k, 1] = vref[1]
+        out.v[k, leader, 0] = vref[0]
+        out.v[k, leader, 1] = vref[1]
+        clearance = math.inf
+        for m in range(m_uavs):
+            clearance = min(clearance, clearance_at(q[m, 0], q[m, 1], scene.rects, scene.circles))
+        out.clearance[k] = clearance
+        out.separation[k] = min_separation(q)
+        if k == k_steps:
+            break
+        if not control_step(k, q, out.q[k + 1], out.v[k], out.v[k + 1], vref, eta, u, cx, cy,
+                            sx, sy, out, inp, scene, ctl, rule, const):  # fmt: skip
+            return k + 1
+        if const.estimate:  # Step 3: prediction with the target's motion model.
+            x, p_cov = predict(x, p_cov, scene.f_mat, scene.q_mat)
+    return -1
+
+
+@njit(cache=True, parallel=True)
+def run_batch(outs, inps, status, scene, ctl, rule, const):
+    """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
+    with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`);
+    ``status[b]`` receives :func:`run_mission`'s result."""
+    for b in prange(status.shape[0]):
+        out = RunOutputs(
+            outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
+            outs[6][b], outs[7][b], outs[8][b],
+        )  # fmt: skip
+        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b])
+        status[b] = run_mission(out, inp, scene, ctl, rule, const)

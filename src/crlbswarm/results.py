@@ -1,0 +1,391 @@
+"""Results of a batch of missions: trajectories, time series, per-run metrics, files.
+
+:class:`MissionResult` is what :func:`crlbswarm.simulate` returns. It computes the per-run
+metrics once (convergence, clearance, separation, cost and, with sensing in the loop, the
+estimation error), gives the columns behind each figure, summarises the batch, and writes
+itself to a folder (:meth:`MissionResult.save`) that :func:`load_results` reads back to an
+equal result.
+
+Adding an output format: write a method beside :meth:`MissionResult.save` (or a function
+taking a result) and list its file in ``docs/scenarios.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import FieldError
+from .output import atomic_path, make_output_folder, write_csv, write_json, write_text
+from .scenario import Scenario, load_scenario
+
+__all__ = [
+    "CENTROID_TOL",
+    "CRLB_TOL",
+    "RESULT_FILES",
+    "STEADY_STATE_S",
+    "MissionResult",
+    "load_results",
+]
+
+#: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
+CRLB_TOL = 0.01
+CENTROID_TOL = 0.5
+
+#: Length of the "steady state" window at the end of a mission (estimation metrics), s.
+STEADY_STATE_S = 30.0
+
+#: The files of a saved result, in the order they are written.
+RESULT_FILES = ("trajectories.npz", "metrics.csv", "scenario.toml", "summary.json")
+
+
+@dataclass(frozen=True, eq=False)
+class MissionResult:
+    """Trajectories and metrics of a batch of missions (B runs, K steps, M UAVs).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario that was run.
+    seeds : ndarray of int, shape (B,)
+        Seed of each run.
+    time : ndarray, shape (K+1,)
+        Time of each sample, s.
+    positions : ndarray, shape (B, K+1, M, 2), or None
+        UAV positions, m (``None`` if ``keep_trajectories=False``).
+    velocities : ndarray, shape (B, K+1, M, 2), or None
+        Consensus velocities :math:`\\mathbf v_{m,k}` (the leader's is :math:`\\mathbf v^*_k`),
+        m/s (``None`` if ``keep_trajectories=False``).
+    centroid : ndarray, shape (B, K+1, 2)
+        Formation centroid, m.
+    target : ndarray, shape (B, K+1, 2)
+        True target position, m (constant for a static target).
+    estimate : ndarray, shape (B, K+1, 2), or None
+        The UAVs' own estimate of the target after each step's measurement (sensing in the
+        loop), m; ``None`` when estimation is off.
+    estimate_variance : ndarray, shape (B, K+1), or None
+        Trace of the position block of the filter's covariance, m^2.
+    pcrb : ndarray, shape (K+1,), or None
+        Posterior CRLB of the position (:func:`crlbswarm.tracking.posterior_crlb`, averaged
+        over the runs of the batch), m^2.
+    reference_velocity : ndarray, shape (B, K+1, 2)
+        Leader's reference :math:`\\mathbf v^*_k`, m/s.
+    eta : ndarray, shape (B, K+1)
+        Scaling factor.
+    crlb : ndarray, shape (B, K+1)
+        CRLB at the actual positions and the true target, m^2.
+    cost : ndarray, shape (B, K)
+        :math:`\\mathcal L_\\text{tot}` of eq. (15) at steps 0..K-1.
+    clearance : ndarray, shape (B, K+1)
+        Smallest signed distance from a UAV to an obstacle, m (inf without obstacles).
+    separation : ndarray, shape (B, K+1)
+        Smallest distance between two UAVs, m.
+    bound : float
+        Theoretical bound :math:`4/\\sum_m w_m^*`, eq. (11), m^2.
+    """
+
+    scenario: Scenario
+    seeds: np.ndarray
+    time: np.ndarray
+    positions: np.ndarray | None
+    velocities: np.ndarray | None
+    centroid: np.ndarray
+    reference_velocity: np.ndarray
+    target: np.ndarray
+    estimate: np.ndarray | None
+    estimate_variance: np.ndarray | None
+    pcrb: np.ndarray | None
+    eta: np.ndarray
+    crlb: np.ndarray
+    cost: np.ndarray
+    clearance: np.ndarray
+    separation: np.ndarray
+    bound: float
+    metrics: dict[str, np.ndarray] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "metrics", self._metrics())
+
+    @property
+    def n_runs(self) -> int:
+        """Number of runs B."""
+        return int(self.seeds.shape[0])
+
+    @property
+    def centroid_error(self) -> np.ndarray:
+        """Distance from the formation centroid to the (true) target, m, shape (B, K+1)."""
+        offset = self.centroid - self.target
+        return np.hypot(offset[..., 0], offset[..., 1])
+
+    @property
+    def estimation_error(self) -> np.ndarray | None:
+        """Distance from the UAVs' estimate to the true target, m, shape (B, K+1)."""
+        if self.estimate is None:
+            return None
+        offset = self.estimate - self.target
+        return np.hypot(offset[..., 0], offset[..., 1])
+
+    @property
+    def steady_state(self) -> np.ndarray:
+        """Mask of the steps in the last :data:`STEADY_STATE_S` seconds (at most the last
+        half of the mission), shape (K+1,)."""
+        window = min(STEADY_STATE_S, 0.5 * float(self.time[-1]))
+        return self.time >= self.time[-1] - window - 1e-9
+
+    def _metrics(self) -> dict[str, np.ndarray]:
+        ratio = self.crlb / self.bound
+        centroid = self.centroid_error
+        ok = (ratio <= 1.0 + CRLB_TOL) & (centroid <= CENTROID_TOL)
+        # Converged from step k on: every later step is ok (reverse cumulative AND).
+        settled = np.flip(np.logical_and.accumulate(np.flip(ok, axis=1), axis=1), axis=1)
+        first = np.argmax(settled, axis=1)
+        conv = np.where(settled[:, -1], self.time[first], np.nan)
+        return {
+            "seed": self.seeds,
+            "final_crlb_ratio": ratio[:, -1],
+            "final_centroid_error_m": centroid[:, -1],
+            "final_eta": self.eta[:, -1],
+            "min_eta": self.eta.min(axis=1),
+            "convergence_time_s": conv,
+            "min_clearance_m": self.clearance.min(axis=1),
+            "min_separation_m": self.separation.min(axis=1),
+            "max_cost": self.cost.max(axis=1),
+            "final_cost": self.cost[:, -1],
+            **self._estimation_metrics(),
+        }
+
+    def _estimation_metrics(self) -> dict[str, np.ndarray]:
+        error = self.estimation_error
+        if error is None:
+            return {}
+        # A contiguous suffix, so each run's reduction does not depend on the batch.
+        k0 = int(np.argmax(self.steady_state))
+        tail_error = np.ascontiguousarray(error[:, k0:])
+        tail_std = np.sqrt(np.ascontiguousarray(self.estimate_variance[:, k0:]))
+        return {
+            "final_estimation_error_m": error[:, -1],
+            "steady_rms_estimation_error_m": np.sqrt(np.mean(tail_error**2, axis=1)),
+            "steady_max_error_over_sqrt_crlb": np.max(
+                tail_error / np.sqrt(self.crlb[:, k0:]), axis=1
+            ),
+            "steady_max_error_over_filter_std": np.max(tail_error / tail_std, axis=1),
+        }
+
+    @property
+    def steady_rmse_over_sqrt_pcrb(self) -> float | None:
+        """Batch figure of tracking efficiency: the RMS over runs of the estimation error,
+        divided by the square root of the PCRB, averaged over the steady-state steps (1 for
+        an efficient tracker). ``None`` without estimation."""
+        error = self.estimation_error
+        if error is None:
+            return None
+        tail = self.steady_state
+        rmse = np.sqrt(np.mean(error[:, tail] ** 2, axis=0))
+        return float(np.mean(rmse / np.sqrt(self.pcrb[tail])))
+
+    def run_index(self, run: object) -> int:
+        """Check a run index of this batch.
+
+        Parameters
+        ----------
+        run : int
+            Index of a run, ``0 <= run < n_runs``.
+
+        Returns
+        -------
+        int
+            The index.
+        """
+        if not isinstance(run, int | np.integer) or not 0 <= run < self.n_runs:
+            raise FieldError("run", f"must be an index in 0..{self.n_runs - 1}, got {run!r}")
+        return int(run)
+
+    def trajectory_columns(self, run: int = 0) -> dict[str, np.ndarray]:
+        """Columns of Fig. 3's data: time, eta and every UAV's x and y (UAVs numbered from 1).
+
+        Parameters
+        ----------
+        run : int, default 0
+            Index of the run in the batch.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``eta``, ``target_x``, ``target_y``, ``estimate_x``, ``estimate_y``
+            (with estimation), ``x_uav1``, ``y_uav1``, ..., in metres.
+        """
+        b = self.run_index(run)
+        if self.positions is None:
+            raise FieldError(
+                "result", "has no trajectories (simulated with keep_trajectories=False)"
+            )
+        cols = {
+            "time_s": self.time,
+            "eta": self.eta[b],
+            "target_x": self.target[b, :, 0],
+            "target_y": self.target[b, :, 1],
+        }
+        if self.estimate is not None:
+            cols["estimate_x"] = self.estimate[b, :, 0]
+            cols["estimate_y"] = self.estimate[b, :, 1]
+        for m in range(self.positions.shape[2]):
+            cols[f"x_uav{m + 1}"] = self.positions[b, :, m, 0]
+            cols[f"y_uav{m + 1}"] = self.positions[b, :, m, 1]
+        return cols
+
+    def timeseries_columns(self, run: int = 0) -> dict[str, np.ndarray]:
+        """Columns of Fig. 4's data: time, CRLB, bound, cost (NaN at the last sample), eta,
+        smallest clearance and separation, centroid error.
+
+        Parameters
+        ----------
+        run : int, default 0
+            Index of the run in the batch.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``crlb_m2``, ``bound_m2``, ``cost``, ``eta``, ``min_clearance_m``,
+            ``min_separation_m``, ``centroid_error_m``.
+        """
+        b = self.run_index(run)
+        return {
+            "time_s": self.time,
+            "crlb_m2": self.crlb[b],
+            "bound_m2": np.full(self.time.shape, self.bound),
+            "cost": np.append(self.cost[b], np.nan),
+            "eta": self.eta[b],
+            "min_clearance_m": self.clearance[b],
+            "min_separation_m": self.separation[b],
+            "centroid_error_m": self.centroid_error[b],
+        }
+
+    def estimation_columns(self) -> dict[str, np.ndarray]:
+        """Columns of the sensing-in-the-loop figure: statistics over the runs per step.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (K+1,)
+            ``time_s``, ``rms_estimation_error_m`` (over runs), ``pcrb_m2``,
+            ``mean_crlb_m2`` (instantaneous CRLB, mean over runs), ``rms_centroid_error_m``.
+        """
+        error = self.estimation_error
+        if error is None:
+            raise FieldError("result", "has no estimates (simulate a scenario with estimation on)")
+        return {
+            "time_s": self.time,
+            "rms_estimation_error_m": np.sqrt(np.mean(error**2, axis=0)),
+            "pcrb_m2": self.pcrb,
+            "mean_crlb_m2": self.crlb.mean(axis=0),
+            "rms_centroid_error_m": np.sqrt(np.mean(self.centroid_error**2, axis=0)),
+        }
+
+    def save(self, folder: str | os.PathLike[str]) -> list[Path]:
+        """Write the result to a folder: arrays, per-run metrics, scenario and summary.
+
+        Files (each written atomically; ``summary.json`` last, so its presence marks a
+        complete set): ``trajectories.npz`` (every array attribute that is not ``None``,
+        and ``formation``, the scenario's :math:`F^*`), ``metrics.csv`` (one row per run),
+        ``scenario.toml`` (the scenario, readable by :func:`crlbswarm.load_scenario`) and
+        ``summary.json`` (:meth:`summary`, the first and last seed and the crlbswarm
+        version). :func:`load_results` reads the folder back.
+
+        Parameters
+        ----------
+        folder : str or path-like
+            Output folder; created if missing, files of the same names replaced.
+
+        Returns
+        -------
+        list of pathlib.Path
+            The files written, in order.
+        """
+        from . import __version__
+
+        out = make_output_folder(folder, "folder")
+        arrays = {name: np.asarray(getattr(self, name)) for name in _ARRAY_FIELDS}
+        arrays = {k: v for k, v in arrays.items() if v.dtype != object}  # None: not kept
+        arrays["formation"] = self.scenario.formation
+        paths = [out / name for name in RESULT_FILES]
+        with atomic_path(paths[0]) as tmp:
+            np.savez(tmp, **arrays)
+        write_csv(paths[1], self.metrics)
+        write_text(paths[2], self.scenario.to_toml())
+        summary = self.summary()
+        summary["seeds"] = {"first": int(self.seeds[0]), "last": int(self.seeds[-1])}
+        summary["crlbswarm_version"] = __version__
+        write_json(paths[3], summary)
+        return paths
+
+    def summary(self) -> dict[str, Any]:
+        """Aggregate figures over the runs, JSON-ready.
+
+        Returns
+        -------
+        dict
+            Scenario name, number of runs, steps, the bound, and for each metric its min,
+            mean and max over the runs (NaN-aware for the convergence time, with the number
+            of runs that converged).
+        """
+        out: dict[str, Any] = {
+            "scenario": self.scenario.name,
+            "runs": self.n_runs,
+            "steps": int(self.time.shape[0] - 1),
+            "duration_s": float(self.time[-1]),
+            "bound_m2": float(self.bound),
+            "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
+        }
+        if self.estimate is not None:
+            out["steady_rmse_over_sqrt_pcrb"] = self.steady_rmse_over_sqrt_pcrb
+        for name, values in self.metrics.items():
+            if name == "seed":
+                continue
+            finite = values[np.isfinite(values)]
+            out[name] = {
+                "min": float(finite.min()) if finite.size else None,
+                "mean": float(finite.mean()) if finite.size else None,
+                "max": float(finite.max()) if finite.size else None,
+            }
+        return out
+
+
+#: The array attributes of a result (everything but the scenario and the derived metrics).
+_ARRAY_FIELDS = tuple(
+    f.name for f in dataclasses.fields(MissionResult) if f.init and f.name != "scenario"
+)
+
+
+def load_results(folder: str | os.PathLike[str]) -> MissionResult:
+    """Read a result written by :meth:`MissionResult.save` (or ``crlbswarm simulate``).
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The folder holding ``trajectories.npz`` and ``scenario.toml``.
+
+    Returns
+    -------
+    MissionResult
+        The result, with its metrics recomputed from the arrays (equal to the saved ones).
+
+    Raises
+    ------
+    FieldError
+        If the folder does not hold a complete result (naming the missing file).
+    ScenarioError
+        If its scenario file is not a valid scenario.
+    """
+    path = Path(folder)
+    for name in RESULT_FILES:
+        if not (path / name).is_file():
+            raise FieldError("folder", f"{str(path)!r} holds no saved result ({name} missing)")
+    scenario = load_scenario(path / "scenario.toml")
+    with np.load(path / "trajectories.npz") as data:
+        arrays = {name: data.get(name) for name in _ARRAY_FIELDS}
+    arrays["bound"] = float(arrays["bound"])
+    return MissionResult(scenario=scenario, **arrays)
