@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 from distributed import Client, LocalCluster, WorkerPlugin
 
-from crlbswarm import ScenarioError, load_scenario, simulate
+from crlbswarm import FieldError, load_scenario, simulate
 from crlbswarm.campaign import CampaignSpec, plan_tasks, run_campaign
 from crlbswarm.scenario import Scenario
 
@@ -190,7 +190,7 @@ def test_bad_specs_name_the_field_and_run_nothing(tmp_path, text, field):
     def attempt():
         run_campaign(CampaignSpec.from_toml(text), tmp_path / "out")
 
-    with pytest.raises(ScenarioError, match=field):
+    with pytest.raises(FieldError, match=field):
         attempt()
     assert not (tmp_path / "out").exists()
 
@@ -256,14 +256,14 @@ def test_a_folder_of_another_campaign_is_refused(tmp_path, shared_scheduler):
     first = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 1\n')
     run_campaign(first, tmp_path, scheduler=shared_scheduler)
     other = CampaignSpec.from_toml('base = "paper"\n[seeds]\ncount = 2\n')
-    with pytest.raises(ScenarioError, match=r"^out: .*different campaign"):
+    with pytest.raises(FieldError, match=r"^out: .*different campaign"):
         run_campaign(other, tmp_path, scheduler=shared_scheduler)
     assert len(load_runs(tmp_path)) == 1
 
 
 def test_grid_values_of_mixed_types_are_refused_before_running(tmp_path):
     text = 'base = "paper"\n[seeds]\ncount = 1\n[grid]\n"name" = ["a", 1]\n'
-    with pytest.raises(ScenarioError):
+    with pytest.raises(FieldError):
         run_campaign(CampaignSpec.from_toml(text), tmp_path / "out")
     assert not (tmp_path / "out").exists()
 

@@ -118,10 +118,10 @@ def test_missing_command_is_an_error(capsys):
 @pytest.fixture
 def small_figures(monkeypatch):
     """Fewer Monte Carlo trials and runs for the figures command (same code paths)."""
-    import crlbswarm.cli as cli_module
+    import crlbswarm.paper as paper_module
 
-    monkeypatch.setattr(cli_module, "FIGURE_TRIALS", 50)
-    monkeypatch.setattr(cli_module, "FIGURE_RUNS", 3)
+    monkeypatch.setattr(paper_module, "FIGURE_TRIALS", 50)
+    monkeypatch.setattr(paper_module, "FIGURE_RUNS", 3)
 
 
 def test_figures_writes_everything(tmp_path, capsys, small_figures):

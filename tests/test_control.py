@@ -1,11 +1,13 @@
 """Control laws of Sec. IV (crlbswarm.control) against references written in this file.
 
 The references below use plain Python loops over a dense adjacency matrix built from an
-edge list; they follow PAPER_NOTES sec. 3 (corrected eq. (14), eqs. (15), (18), (19)) and
-never call crlbswarm. Beside them: small examples whose expected numbers were worked out by
-hand, the closed-form solutions of the two linear laws (matrix powers of ``I - gamma L_ff``
-and ``I - eps L``), invariance to relabelling the followers, batches against loops, and
-checks that no input array is ever written to.
+edge list; they follow docs/control.md (secs. 4, 6, 7 and 10: the corrected eq. (14), eqs.
+(19), (18) and (15)) and never call crlbswarm. Beside them: small examples whose expected
+numbers were worked out by hand, the closed-form solutions of the two linear laws (matrix
+powers of ``I - gamma L_ff`` and ``I - eps L``), invariance to relabelling the followers,
+batches against loops, and checks that no input array is ever written to. The laws take
+their gains from one ``ControlGains`` (and the eta rule from one ``EtaRule``); the gains
+used repeatedly are the module constants below.
 """
 
 from __future__ import annotations
@@ -17,9 +19,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pydantic import ValidationError
 
 from crlbswarm import (
     Adjacency,
+    ControlGains,
+    EtaRule,
+    FieldError,
     Obstacles,
     communication_graph,
     consensus_step,
@@ -35,6 +41,54 @@ from crlbswarm import (
 )
 
 SEEDS = [0, 1, 2, 3]
+
+#: A repulsion cap too large ever to bind, for the uncapped examples (the gains must be
+#: finite, so the cap cannot be infinity).
+NO_CAP = 1e300
+
+
+def repulsion_gains(
+    gain: float = 2.0, l_safe: float = 5.0, max_step: float = NO_CAP
+) -> ControlGains:
+    """Gains with E_r = ``gain`` and l_safe = ``l_safe``, uncapped unless ``max_step``."""
+    return ControlGains(repulsion_gain=gain, safety_radius=l_safe, repulsion_max_step=max_step)
+
+
+def guidance_gains(gain: float, cruise: float) -> ControlGains:
+    """Gains with k_g = ``gain``, v_c = ``cruise`` and, for the steering term, E_r = 2 and
+    l_safe = 5."""
+    return ControlGains(
+        guidance_gain=gain, cruise_speed=cruise, repulsion_gain=2.0, safety_radius=5.0
+    )
+
+
+#: E_r = 2, l_safe = 5 (the paper's), no cap: the repulsion of the hand-computed examples.
+REPULSION = repulsion_gains()
+
+#: Gains of the batch, broadcasting, relabelling and read-only tests: gamma = 0.2,
+#: eps = 0.05, and for the guidance and repulsion k_g = 0.5, v_c = 2, E_r = 2, l_safe = 5
+#: with the repulsion capped at 1 m per step.
+GAINS = ControlGains(
+    gamma=0.2,
+    epsilon=0.05,
+    guidance_gain=0.5,
+    cruise_speed=2.0,
+    repulsion_gain=2.0,
+    safety_radius=5.0,
+    repulsion_max_step=1.0,
+)
+
+#: Gains of the closed-loop mission: the paper scenario's defaults (docs/control.md sec.
+#: 12.1), written out.
+MISSION_GAINS = ControlGains(
+    epsilon=0.01,
+    gamma=0.25,
+    guidance_gain=0.5,
+    cruise_speed=2.0,
+    repulsion_gain=2.0,
+    safety_radius=5.0,
+    repulsion_max_step=1.0,
+)
 
 #: Connected graphs of 10 UAVs for the convergence tests (random_geometric seeds 0, 2, 3 and
 #: radius 0.55 give connected graphs).
@@ -198,7 +252,8 @@ def test_consensus_hand_computed():
     UAV 1: (v1 - v2) + (v1 - v_ref) = (-2,-2) + (-1,-1) -> v1 + 1.5 = (2.5, 1.5);
     UAV 2: v2 - v1 = (2, 2) -> (2, 1); the leader's row (7, 7) is replaced by v_ref."""
     adj = adj_of(3, [(0, 1), (1, 2)])
-    out = consensus_step([[7.0, 7.0], [1.0, 0.0], [3.0, 2.0]], [2.0, 1.0], adj, 0, 0.5)
+    v = [[7.0, 7.0], [1.0, 0.0], [3.0, 2.0]]
+    out = consensus_step(v, [2.0, 1.0], adj, 0, ControlGains(gamma=0.5))
     np.testing.assert_allclose(out, [[2.0, 1.0], [2.5, 1.5], [2.0, 1.0]], rtol=0, atol=1e-15)
 
 
@@ -206,7 +261,8 @@ def test_consensus_hand_computed_leader_not_zero():
     """Same path, leader 1 in the middle, gamma = 1/4, v_ref = (4, 0):
     UAV 0: v0 - v_ref = (-3, 2) -> (1.75, 1.5); UAV 2: v2 - v_ref = (-1, 2) -> (3.25, 1.5)."""
     adj = adj_of(3, [(0, 1), (1, 2)])
-    out = consensus_step([[1.0, 2.0], [9.0, 9.0], [3.0, 2.0]], [4.0, 0.0], adj, 1, 0.25)
+    v = [[1.0, 2.0], [9.0, 9.0], [3.0, 2.0]]
+    out = consensus_step(v, [4.0, 0.0], adj, 1, ControlGains(gamma=0.25))
     np.testing.assert_allclose(out, [[1.75, 1.5], [4.0, 0.0], [3.25, 1.5]], rtol=0, atol=1e-15)
 
 
@@ -217,7 +273,7 @@ def test_formation_input_hand_computed():
     adj = adj_of(3, [(0, 1), (1, 2), (0, 2)])
     q = [[0.0, 0.0], [4.0, 0.0], [0.0, 2.0]]
     delta = [[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]]
-    out = formation_input(q, delta, 0.5, adj, 0.1)
+    out = formation_input(q, delta, 0.5, adj, ControlGains(epsilon=0.1))
     np.testing.assert_allclose(out, [[0.3, 0.1], [-0.6, 0.1], [0.3, -0.2]], rtol=0, atol=1e-15)
 
 
@@ -241,9 +297,9 @@ def test_repulsion_hand_computed():
     2 (1/2 - 1/5) / 4 = 0.15 along +x; the circle at (3, -3), r = 1: l = 2.5,
     2 (0.4 - 0.2) / 6.25 = 0.064 along +y. (4, 5): l = 5 from (1, 1), not < l_safe: 0."""
     obstacles = Obstacles([RECT], [CIRCLE])
-    out = repulsion([[3.0, 0.5], [4.0, 5.0], [30.0, 30.0]], obstacles, 2.0, 5.0)
+    out = repulsion([[3.0, 0.5], [4.0, 5.0], [30.0, 30.0]], obstacles, REPULSION)
     np.testing.assert_allclose(out, [[0.15, 0.064], [0.0, 0.0], [0.0, 0.0]], rtol=0, atol=1e-15)
-    only_rect = repulsion([3.0, 0.5], Obstacles([RECT]), 2.0, 5.0)
+    only_rect = repulsion([3.0, 0.5], Obstacles([RECT]), REPULSION)
     np.testing.assert_allclose(only_rect, [0.15, 0.0], rtol=0, atol=1e-15)
 
 
@@ -254,8 +310,8 @@ def test_repulsion_corner_and_cap_hand_computed():
     obstacles = Obstacles([RECT])
     mag = 1.0 / math.sqrt(2.0) - 0.2
     expected = mag * np.array([1.0, 1.0]) / math.sqrt(2.0)
-    np.testing.assert_allclose(repulsion([2.0, 2.0], obstacles, 2.0, 5.0), expected, 1e-14)
-    capped = repulsion([2.0, 2.0], obstacles, 2.0, 5.0, max_step=0.1)
+    np.testing.assert_allclose(repulsion([2.0, 2.0], obstacles, REPULSION), expected, 1e-14)
+    capped = repulsion([2.0, 2.0], obstacles, repulsion_gains(max_step=0.1))
     np.testing.assert_allclose(capped, 0.1 * np.array([1.0, 1.0]) / math.sqrt(2.0), 1e-14)
 
 
@@ -269,14 +325,14 @@ def test_repulsion_cap_applies_to_the_sum():
     right = 2.0 * (1.0 / 1.5 - 0.2) / 2.25  # along -x
     total = left - right
     np.testing.assert_allclose(
-        repulsion([0.0, 0.0], obstacles, 2.0, 5.0), [total, 0.0], rtol=1e-14, atol=0
+        repulsion([0.0, 0.0], obstacles, REPULSION), [total, 0.0], rtol=1e-14, atol=0
     )
     np.testing.assert_allclose(
-        repulsion([0.0, 0.0], obstacles, 2.0, 5.0, max_step=0.5), [0.5, 0.0], 1e-14
+        repulsion([0.0, 0.0], obstacles, repulsion_gains(max_step=0.5)), [0.5, 0.0], 1e-14
     )
     # Summing capped pushes would give 0.5 - 0.5 = 0.
     np.testing.assert_allclose(
-        repulsion([0.0, 0.0], obstacles, 2.0, 5.0, max_step=1.0), [1.0, 0.0], 1e-14
+        repulsion([0.0, 0.0], obstacles, repulsion_gains(max_step=1.0)), [1.0, 0.0], 1e-14
     )
 
 
@@ -285,7 +341,7 @@ def test_repulsion_inside_pushes_out_through_the_nearest_face():
     obstacles = Obstacles([[0.0, 10.0, 0.0, 4.0]])
     points = [[9.5, 2.0], [0.2, 2.0], [5.0, 0.3], [5.0, 3.9]]
     expected = [[1.0, 0.0], [-1.0, 0.0], [0.0, -1.0], [0.0, 1.0]]
-    out = repulsion(points, obstacles, 2.0, 5.0, max_step=0.7)
+    out = repulsion(points, obstacles, repulsion_gains(max_step=0.7))
     np.testing.assert_allclose(out, 0.7 * np.array(expected), rtol=1e-14, atol=1e-14)
 
 
@@ -308,7 +364,8 @@ def test_obstacle_clearance_without_obstacles_is_inf():
 def test_leader_guidance_hand_computed():
     """k_g = 0.5, v_c = 2 from (0, 0): to (3, 4) k_g (g - q) = (1.5, 2), |.| = 2.5 > 2, so
     (1.2, 1.6); to (0.6, 0.8): (0.3, 0.4), unsaturated."""
-    out = leader_guidance([[0.0, 0.0], [0.0, 0.0]], [[3.0, 4.0], [0.6, 0.8]], 0.5, 2.0)
+    gains = guidance_gains(0.5, 2.0)
+    out = leader_guidance([[0.0, 0.0], [0.0, 0.0]], [[3.0, 4.0], [0.6, 0.8]], gains)
     np.testing.assert_allclose(out, [[1.2, 1.6], [0.3, 0.4]], rtol=1e-15, atol=1e-15)
 
 
@@ -320,30 +377,30 @@ def test_leader_guidance_footprint_hand_computed():
         "center_xy": [10.0, 0.5],
         "footprint": 6.0,
         "obstacles": Obstacles([RECT]),
-        "repulsion_gain": 2.0,
-        "safety_radius": 5.0,
         "dt": 0.1,
     }
     w = np.array([0.3 + 40.0 / 135.0, 0.4])
-    out = leader_guidance([0.0, 0.0], [0.6, 0.8], 0.5, 2.0, **kwargs)
+    out = leader_guidance([0.0, 0.0], [0.6, 0.8], guidance_gains(0.5, 2.0), **kwargs)
     np.testing.assert_allclose(out, w, rtol=1e-14)
-    slow = leader_guidance([0.0, 0.0], [0.6, 0.8], 0.5, 0.5, **kwargs)
+    slow = leader_guidance([0.0, 0.0], [0.6, 0.8], guidance_gains(0.5, 0.5), **kwargs)
     np.testing.assert_allclose(slow, w * 0.5 / np.hypot(*w), rtol=1e-14)
     # Without a footprint the obstacles are ignored.
-    bare = leader_guidance([0.0, 0.0], [0.6, 0.8], 0.5, 2.0, **{**kwargs, "footprint": 0.0})
+    bare = leader_guidance(
+        [0.0, 0.0], [0.6, 0.8], guidance_gains(0.5, 2.0), **{**kwargs, "footprint": 0.0}
+    )
     np.testing.assert_allclose(bare, [0.3, 0.4], rtol=1e-15)
 
 
 def test_leader_guidance_footprint_needs_center_and_obstacles():
     with pytest.raises(ValueError, match=r"^footprint"):
-        leader_guidance([0.0, 0.0], [1.0, 1.0], 0.5, 2.0, footprint=3.0)
+        leader_guidance([0.0, 0.0], [1.0, 1.0], guidance_gains(0.5, 2.0), footprint=3.0)
     with pytest.raises(ValueError, match=r"^footprint"):
-        leader_guidance([0.0, 0.0], [1.0, 1.0], 0.5, 2.0, footprint=-1.0)
+        leader_guidance([0.0, 0.0], [1.0, 1.0], guidance_gains(0.5, 2.0), footprint=-1.0)
 
 
 def test_eta_update_hand_computed():
     """Rate 0.1 /s, dt 0.1 s: at most 0.01 per step."""
-    out = eta_update([1.0, 0.5, 0.3, 0.7], [0.3, 0.505, 1.0, 0.7], 0.1, 0.1)
+    out = eta_update([1.0, 0.5, 0.3, 0.7], [0.3, 0.505, 1.0, 0.7], EtaRule(rate=0.1), 0.1)
     np.testing.assert_allclose(out, [0.99, 0.505, 0.31, 0.7], rtol=0, atol=1e-15)
 
 
@@ -363,13 +420,13 @@ def test_consensus_and_formation_match_reference(seed, n):
     eta = rng.uniform(0.3, 1.0)
     for leader in range(n):
         np.testing.assert_allclose(
-            consensus_step(v, v_ref, adj, leader, 0.2),
-            consensus_ref(v, v_ref, a, leader, 0.2),
+            consensus_step(v, v_ref, adj, leader, GAINS),
+            consensus_ref(v, v_ref, a, leader, GAINS.gamma),
             rtol=1e-13,
             atol=1e-13,
         )
     np.testing.assert_allclose(
-        formation_input(q, delta, eta, adj, 0.03),
+        formation_input(q, delta, eta, adj, ControlGains(epsilon=0.03)),
         formation_ref(q, delta, eta, a, 0.03),
         rtol=1e-12,
         atol=1e-12,
@@ -408,9 +465,9 @@ def test_repulsion_matches_reference_outside(x, y, gain, l_safe):
     if clearance_ref(x, y, SCENE_RECTS, SCENE_CIRCLES) < 0.01:
         return
     expected = repulsion_ref(x, y, SCENE_RECTS, SCENE_CIRCLES, gain, l_safe)
-    got = repulsion([x, y], SCENE, gain, l_safe)
+    got = repulsion([x, y], SCENE, repulsion_gains(gain, l_safe))
     assert_vector_close(got, expected, 1e-12)
-    capped = repulsion([x, y], SCENE, gain, l_safe, max_step=0.5)
+    capped = repulsion([x, y], SCENE, repulsion_gains(gain, l_safe, max_step=0.5))
     assert_vector_close(
         capped, repulsion_ref(x, y, SCENE_RECTS, SCENE_CIRCLES, gain, l_safe, 0.5), 1e-12
     )
@@ -422,7 +479,7 @@ def test_repulsion_zero_beyond_safety_radius():
     rng = np.random.default_rng(5)
     pts = rng.uniform(-30, 110, size=(20000, 2))
     far = np.array([clearance_ref(x, y, SCENE_RECTS, SCENE_CIRCLES) >= 5.0 for x, y in pts])
-    out = repulsion(pts, SCENE, 2.0, 5.0)
+    out = repulsion(pts, SCENE, REPULSION)
     assert far.sum() > 1000
     assert np.all(out[far] == 0.0)
     assert np.all(np.any(out[~far] != 0.0, axis=1))
@@ -433,7 +490,7 @@ def test_repulsion_points_away_from_nearest_point_and_decreases():
     obstacles = Obstacles([[0.0, 10.0, 0.0, 10.0]])
     ells = np.linspace(0.2, 4.9, 50)
     pts = np.stack([10.0 + ells, np.full_like(ells, 5.0)], axis=-1)
-    out = repulsion(pts, obstacles, 2.0, 5.0)
+    out = repulsion(pts, obstacles, REPULSION)
     assert np.all(out[:, 1] == 0.0)
     assert np.all(out[:, 0] > 0.0)
     assert np.all(np.diff(out[:, 0]) < 0.0)
@@ -459,13 +516,10 @@ def test_leader_guidance_matches_reference(cx, cy, gain, cruise, footprint):
     got = leader_guidance(
         q,
         goal,
-        gain,
-        cruise,
+        guidance_gains(gain, cruise),
         center_xy=[cx, cy],
         footprint=footprint,
         obstacles=SCENE,
-        repulsion_gain=2.0,
-        safety_radius=5.0,
         dt=0.1,
     )
     assert_vector_close(got, expected, 1e-12)
@@ -475,13 +529,18 @@ def test_leader_guidance_matches_reference(cx, cy, gain, cruise, footprint):
 # =============================================================================================
 # eta rule
 # =============================================================================================
-ETA_KW = {"radius": 14.0, "margin": 5.0, "lookahead": 40.0, "eta_min": 0.3}
+#: Nominal formation radius R of the eta tests, m.
+RADIUS = 14.0
+
+#: The eta rule of the eta tests: margin 5 m (l_safe), lookahead 40 m, eta_min 0.3, rate
+#: 0.1 /s, 32 samples along the path.
+ETA_RULE = EtaRule(margin=5.0, lookahead=40.0, minimum=0.3, rate=0.1, samples=32)
 
 
 def test_eta_target_is_one_without_obstacles():
     rng = np.random.default_rng(0)
     c = rng.uniform(-100, 100, size=(4, 5, 2))
-    out = eta_target(c, [80.0, 90.0], Obstacles(), **ETA_KW)
+    out = eta_target(c, [80.0, 90.0], Obstacles(), RADIUS, ETA_RULE)
     assert out.shape == (4, 5)
     assert np.all(out == 1.0)
 
@@ -490,15 +549,16 @@ def test_eta_target_is_one_far_from_obstacles():
     """Obstacles far off the corridor (and the target closer than any of them)."""
     obstacles = Obstacles([[0.0, 10.0, 500.0, 600.0]], [[-300.0, 0.0, 5.0]])
     c = np.stack([np.linspace(-50, 50, 11), np.zeros(11)], axis=-1)
-    assert np.all(eta_target(c, [100.0, 0.0], obstacles, **ETA_KW) == 1.0)
+    assert np.all(eta_target(c, [100.0, 0.0], obstacles, RADIUS, ETA_RULE) == 1.0)
 
 
 def test_eta_target_is_eta_min_when_blocked():
     """A wall across the whole path ahead: no free width, eta_min."""
     wall = Obstacles([[10.0, 20.0, -1000.0, 1000.0]])
-    out = eta_target([[0.0, 0.0], [-5.0, 3.0], [15.0, 0.0]], [100.0, 0.0], wall, **ETA_KW)
+    out = eta_target([[0.0, 0.0], [-5.0, 3.0], [15.0, 0.0]], [100.0, 0.0], wall, RADIUS, ETA_RULE)
     np.testing.assert_array_equal(out, 0.3)
-    out = eta_target([0.0, 0.0], [100.0, 0.0], wall, **{**ETA_KW, "eta_min": 0.05})
+    low_floor = EtaRule(margin=5.0, lookahead=40.0, minimum=0.05, rate=0.1, samples=32)
+    out = eta_target([0.0, 0.0], [100.0, 0.0], wall, RADIUS, low_floor)
     assert float(out) == 0.05
 
 
@@ -506,10 +566,12 @@ def test_eta_target_in_a_straight_corridor():
     """Walls at y = +-10 along the path: the free half-width is 10 (at the corridor's
     middle), so eta = (10 - margin) / R = 5/14; a wider corridor gives 1."""
     walls = Obstacles([[-100.0, 200.0, 10.0, 50.0], [-100.0, 200.0, -50.0, -10.0]])
-    out = eta_target([[0.0, 0.0], [-20.0, 0.0], [50.0, 0.0]], [150.0, 0.0], walls, **ETA_KW)
+    out = eta_target(
+        [[0.0, 0.0], [-20.0, 0.0], [50.0, 0.0]], [150.0, 0.0], walls, RADIUS, ETA_RULE
+    )
     np.testing.assert_allclose(out, 5.0 / 14.0, rtol=1e-14)
     wide = Obstacles([[-100.0, 200.0, 20.0, 50.0], [-100.0, 200.0, -50.0, -20.0]])
-    assert float(eta_target([0.0, 0.0], [150.0, 0.0], wide, **ETA_KW)) == 1.0
+    assert float(eta_target([0.0, 0.0], [150.0, 0.0], wide, RADIUS, ETA_RULE)) == 1.0
 
 
 def test_eta_target_looks_ahead_and_behind():
@@ -519,21 +581,21 @@ def test_eta_target_looks_ahead_and_behind():
     walls it no longer does."""
     for dist, expected in [(50.0, 5.0 / 14.0), (52.0, 7.0 / 14.0), (59.0, 1.0), (80.0, 1.0)]:
         wall = Obstacles([[dist, dist + 10.0, -1000.0, 1000.0]])
-        got = float(eta_target([0.0, 0.0], [500.0, 0.0], wall, **ETA_KW))
+        got = float(eta_target([0.0, 0.0], [500.0, 0.0], wall, RADIUS, ETA_RULE))
         assert got == pytest.approx(expected, rel=1e-13)
     corridor = Obstacles([[-100.0, 0.0, 10.0, 50.0], [-100.0, 0.0, -50.0, -10.0]])
-    inside = float(eta_target([7.0, 0.0], [150.0, 0.0], corridor, **ETA_KW))
+    inside = float(eta_target([7.0, 0.0], [150.0, 0.0], corridor, RADIUS, ETA_RULE))
     assert inside == pytest.approx(5.0 / 14.0, rel=1e-13)
     # Centre at x = 31: rear sample at x = 17, clearance hypot(17, 10) > 19 = margin + R.
-    assert float(eta_target([31.0, 0.0], [150.0, 0.0], corridor, **ETA_KW)) == 1.0
-    assert float(eta_target([20.0, 0.0], [150.0, 0.0], corridor, **ETA_KW)) < 1.0
+    assert float(eta_target([31.0, 0.0], [150.0, 0.0], corridor, RADIUS, ETA_RULE)) == 1.0
+    assert float(eta_target([20.0, 0.0], [150.0, 0.0], corridor, RADIUS, ETA_RULE)) < 1.0
 
 
 def test_eta_target_does_not_look_past_the_target():
     """The segment stops at the target: a wall just beyond a near target is not seen."""
     wall = Obstacles([[45.0, 55.0, -1000.0, 1000.0]])
-    assert float(eta_target([0.0, 0.0], [20.0, 0.0], wall, **ETA_KW)) == 1.0
-    assert float(eta_target([0.0, 0.0], [500.0, 0.0], wall, **ETA_KW)) == 0.3
+    assert float(eta_target([0.0, 0.0], [20.0, 0.0], wall, RADIUS, ETA_RULE)) == 1.0
+    assert float(eta_target([0.0, 0.0], [500.0, 0.0], wall, RADIUS, ETA_RULE)) == 0.3
 
 
 PAPER_OBSTACLES = Obstacles([[30.0, 45.0, 0.0, 34.0], [30.0, 45.0, 54.0, 80.0]])
@@ -557,7 +619,7 @@ def test_eta_target_range_and_continuity(cx, cy, angle, step):
     if dist < 20.0:
         return
     dc = step * np.array([math.cos(angle), math.sin(angle)])
-    a, b = eta_target(np.stack([c, c + dc]), target, PAPER_OBSTACLES, **ETA_KW)
+    a, b = eta_target(np.stack([c, c + dc]), target, PAPER_OBSTACLES, RADIUS, ETA_RULE)
     assert 0.3 <= a <= 1.0
     bound = (2.0 + (40.0 + 14.0) / (dist - step)) * step / 14.0
     assert abs(a - b) <= 1.01 * bound + 1e-12
@@ -568,7 +630,7 @@ def test_eta_target_paper_path_shrinks_and_recovers():
     gap and is 1 at both ends; the sampled profile has no jumps."""
     t = np.linspace(0.0, 1.0, 2001)[:, None]
     c = (1 - t) * np.array([-40.0, -45.0]) + t * np.array([80.0, 90.0])
-    out = eta_target(c, [80.0, 90.0], PAPER_OBSTACLES, **ETA_KW)
+    out = eta_target(c, [80.0, 90.0], PAPER_OBSTACLES, RADIUS, ETA_RULE)
     assert out[0] == 1.0
     assert out[-1] == 1.0
     assert out.min() < 0.6
@@ -579,7 +641,7 @@ def test_eta_target_paper_path_shrinks_and_recovers():
 @settings(max_examples=200)
 @given(st.floats(1e-6, 1.0), st.floats(1e-6, 1.0), st.floats(0.01, 1.0), st.floats(0.01, 0.5))
 def test_eta_update_rate_limit(eta, goal, rate, dt):
-    new = float(eta_update(eta, goal, rate, dt))
+    new = float(eta_update(eta, goal, EtaRule(rate=rate), dt))
     assert abs(new - eta) <= rate * dt * (1 + 1e-12)
     assert min(eta, goal) - 1e-15 <= new <= max(eta, goal) + 1e-15
     if abs(goal - eta) <= rate * dt:
@@ -619,7 +681,7 @@ def test_consensus_converges_below_limit_and_matches_matrix_power(name, leader):
     steps = math.ceil(math.log(1e-11) / math.log(rho))
     v = v0
     for k in range(1, steps + 1):
-        v = consensus_step(v, v_ref, adj, leader, gamma)
+        v = consensus_step(v, v_ref, adj, leader, ControlGains(gamma=gamma))
         if k == 40:
             power = np.linalg.matrix_power(np.eye(n - 1) - gamma * l_ff, 40)
             expected = np.einsum("ij,bjc->bic", power, v0[:, followers] - v_ref) + v_ref
@@ -633,12 +695,12 @@ def test_consensus_diverges_above_limit(name):
     """At gamma = 1.1 * limit the error grows like (1.2)^k along the top eigenvector."""
     graph = GRAPHS[name]()
     adj = Adjacency.from_graph(graph)
-    gamma = 1.1 * consensus_step_limit(adj, 0)
+    gains = ControlGains(gamma=1.1 * consensus_step_limit(adj, 0))
     rng = np.random.default_rng(0)
     v = rng.normal(size=(adj.n_nodes, 2))
     start = np.max(np.abs(v[1:]))
     for _ in range(200):
-        v = consensus_step(v, [0.0, 0.0], adj, 0, gamma)
+        v = consensus_step(v, [0.0, 0.0], adj, 0, gains)
     assert np.max(np.abs(v)) > 1e6 * start
 
 
@@ -662,7 +724,7 @@ def test_formation_matches_closed_form(name, factor):
     q = q0
     steps = 300
     for _ in range(steps):
-        q = q + formation_input(q, delta, eta, adj, eps)
+        q = q + formation_input(q, delta, eta, adj, ControlGains(epsilon=eps))
     power = np.linalg.matrix_power(np.eye(n) - eps * lap, steps)
     expected = power @ (q0 - eta * delta) + eta * delta
     scale = max(1.0, float(np.max(np.abs(expected))))
@@ -704,22 +766,19 @@ def closed_loop(q0, delta, edges, leader, steps, eta=0.8):
         v_ref = leader_guidance(
             q[leader],
             target + eta * delta[leader],
-            0.5,
-            2.0,
+            MISSION_GAINS,
             center_xy=c,
             footprint=eta * 14.0,
             obstacles=PAPER_OBSTACLES,
-            repulsion_gain=2.0,
-            safety_radius=5.0,
             dt=0.1,
         )
         v = v.copy()
         v[leader] = v_ref
-        u = formation_input(q, delta, eta, adj, 0.01) + repulsion(
-            q, PAPER_OBSTACLES, 2.0, 5.0, 1.0
+        u = formation_input(q, delta, eta, adj, MISSION_GAINS) + repulsion(
+            q, PAPER_OBSTACLES, MISSION_GAINS
         )
         q = q + u + 0.1 * v
-        v = consensus_step(v, v_ref, adj, leader, 0.25)
+        v = consensus_step(v, v_ref, adj, leader, MISSION_GAINS)
         qs.append(q)
         vs.append(v)
     return np.array(qs), np.array(vs)
@@ -764,14 +823,14 @@ def test_laws_are_equivariant_under_relabelling(seed, n):
     q, qn, delta, v = (rng.normal(scale=10.0, size=(n, 2)) for _ in range(4))
     v_ref = rng.normal(size=2)
     np.testing.assert_allclose(
-        formation_input(q[perm], delta[perm], 0.6, adj_p, 0.05),
-        formation_input(q, delta, 0.6, adj, 0.05)[perm],
+        formation_input(q[perm], delta[perm], 0.6, adj_p, GAINS),
+        formation_input(q, delta, 0.6, adj, GAINS)[perm],
         rtol=1e-12,
         atol=1e-12,
     )
     np.testing.assert_allclose(
-        consensus_step(v[perm], v_ref, adj_p, leader, 0.2),
-        consensus_step(v, v_ref, adj, leader, 0.2)[perm],
+        consensus_step(v[perm], v_ref, adj_p, leader, GAINS),
+        consensus_step(v, v_ref, adj, leader, GAINS)[perm],
         rtol=1e-12,
         atol=1e-12,
     )
@@ -791,12 +850,12 @@ def test_formation_input_invariant_to_translation_and_rotation(seed):
     q, delta = rng.normal(scale=10.0, size=(n, 2)), rng.normal(scale=10.0, size=(n, 2))
     theta = rng.uniform(0, 2 * np.pi)
     rot = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
-    u = formation_input(q, delta, 0.9, adj, 0.05)
+    u = formation_input(q, delta, 0.9, adj, GAINS)
     np.testing.assert_allclose(
-        formation_input(q @ rot.T, delta @ rot.T, 0.9, adj, 0.05), u @ rot.T, atol=1e-12
+        formation_input(q @ rot.T, delta @ rot.T, 0.9, adj, GAINS), u @ rot.T, atol=1e-12
     )
     np.testing.assert_allclose(
-        formation_input(q + rng.normal(scale=100.0, size=2), delta, 0.9, adj, 0.05),
+        formation_input(q + rng.normal(scale=100.0, size=2), delta, 0.9, adj, GAINS),
         u,
         atol=1e-11,
     )
@@ -844,44 +903,38 @@ def test_batches_equal_loops(batch_case):
     """Every law on a (2, 3, ...) batch = the law applied to each element."""
     b = batch_case
     adj = b["adj"]
-    cons = consensus_step(b["v"], b["v_ref"], adj, 2, 0.2)
-    form = formation_input(b["q"], b["delta"], b["eta"], adj, 0.05)
+    cons = consensus_step(b["v"], b["v_ref"], adj, 2, GAINS)
+    form = formation_input(b["q"], b["delta"], b["eta"], adj, GAINS)
     cost = formation_cost(b["q"], b["qn"], b["delta"], b["v_ref"], adj, 0.1)
-    rep = repulsion(b["pts"], SCENE, 2.0, 5.0, 1.0)
+    rep = repulsion(b["pts"], SCENE, GAINS)
     clear = obstacle_clearance(b["pts"], SCENE)
-    guide_kw = {
-        "footprint": 2.0,
-        "obstacles": SCENE,
-        "repulsion_gain": 2.0,
-        "safety_radius": 5.0,
-        "dt": 0.1,
-    }
-    guide = leader_guidance(b["pts"], [80.0, 90.0], 0.5, 2.0, center_xy=b["pts"] + 1.0, **guide_kw)
-    eta_goal = eta_target(b["pts"], [80.0, 90.0], PAPER_OBSTACLES, **ETA_KW)
-    upd = eta_update(b["eta"], eta_goal, 0.1, 0.1)
+    guide_kw = {"footprint": 2.0, "obstacles": SCENE, "dt": 0.1}
+    guide = leader_guidance(b["pts"], [80.0, 90.0], GAINS, center_xy=b["pts"] + 1.0, **guide_kw)
+    eta_goal = eta_target(b["pts"], [80.0, 90.0], PAPER_OBSTACLES, RADIUS, ETA_RULE)
+    upd = eta_update(b["eta"], eta_goal, ETA_RULE, 0.1)
     assert cons.shape == form.shape == (2, 3, 5, 2)
     assert cost.shape == clear.shape == eta_goal.shape == upd.shape == (2, 3)
     assert rep.shape == guide.shape == (2, 3, 2)
     for i in range(2):
         for j in range(3):
             np.testing.assert_array_equal(
-                cons[i, j], consensus_step(b["v"][i, j], b["v_ref"][i, j], adj, 2, 0.2)
+                cons[i, j], consensus_step(b["v"][i, j], b["v_ref"][i, j], adj, 2, GAINS)
             )
             np.testing.assert_array_equal(
-                form[i, j], formation_input(b["q"][i, j], b["delta"], b["eta"][i, j], adj, 0.05)
+                form[i, j], formation_input(b["q"][i, j], b["delta"], b["eta"][i, j], adj, GAINS)
             )
             assert cost[i, j] == formation_cost(
                 b["q"][i, j], b["qn"][i, j], b["delta"], b["v_ref"][i, j], adj, 0.1
             )
             p = b["pts"][i, j]
-            np.testing.assert_array_equal(rep[i, j], repulsion(p, SCENE, 2.0, 5.0, 1.0))
+            np.testing.assert_array_equal(rep[i, j], repulsion(p, SCENE, GAINS))
             assert clear[i, j] == obstacle_clearance(p, SCENE)
             np.testing.assert_array_equal(
                 guide[i, j],
-                leader_guidance(p, [80.0, 90.0], 0.5, 2.0, center_xy=p + 1.0, **guide_kw),
+                leader_guidance(p, [80.0, 90.0], GAINS, center_xy=p + 1.0, **guide_kw),
             )
-            assert eta_goal[i, j] == eta_target(p, [80.0, 90.0], PAPER_OBSTACLES, **ETA_KW)
-            assert upd[i, j] == eta_update(b["eta"][i, j], eta_goal[i, j], 0.1, 0.1)
+            assert eta_goal[i, j] == eta_target(p, [80.0, 90.0], PAPER_OBSTACLES, RADIUS, ETA_RULE)
+            assert upd[i, j] == eta_update(b["eta"][i, j], eta_goal[i, j], ETA_RULE, 0.1)
 
 
 def test_broadcasting(batch_case):
@@ -891,31 +944,33 @@ def test_broadcasting(batch_case):
     adj = b["adj"]
     v = b["v"][0]  # (3, M, 2)
     refs = np.random.default_rng(1).normal(size=(4, 1, 2))
-    out = consensus_step(v, refs, adj, 0, 0.2)
+    out = consensus_step(v, refs, adj, 0, GAINS)
     assert out.shape == (4, 3, 5, 2)
     for i in range(4):
         for j in range(3):
-            np.testing.assert_array_equal(out[i, j], consensus_step(v[j], refs[i, 0], adj, 0, 0.2))
-    one = consensus_step(v[0], refs[:, 0], adj, 0, 0.2)
+            np.testing.assert_array_equal(
+                out[i, j], consensus_step(v[j], refs[i, 0], adj, 0, GAINS)
+            )
+    one = consensus_step(v[0], refs[:, 0], adj, 0, GAINS)
     assert one.shape == (4, 5, 2)
-    form = formation_input(b["q"], b["delta"], 0.5, adj, 0.05)
+    form = formation_input(b["q"], b["delta"], 0.5, adj, GAINS)
     np.testing.assert_array_equal(
-        form[1, 2], formation_input(b["q"][1, 2], b["delta"], 0.5, adj, 0.05)
+        form[1, 2], formation_input(b["q"][1, 2], b["delta"], 0.5, adj, GAINS)
     )
     etas = np.array([0.3, 0.6, 0.9])
-    form = formation_input(b["q"][0, 0], b["delta"], etas, adj, 0.05)
+    form = formation_input(b["q"][0, 0], b["delta"], etas, adj, GAINS)
     assert form.shape == (3, 5, 2)
     for i, e in enumerate(etas):
         np.testing.assert_array_equal(
-            form[i], formation_input(b["q"][0, 0], b["delta"], e, adj, 0.05)
+            form[i], formation_input(b["q"][0, 0], b["delta"], e, adj, GAINS)
         )
     cost = formation_cost(b["q"][0], b["qn"][0, 0], b["delta"], [0.0, 1.0], adj, 0.1)
     assert cost.shape == (3,)
     goals = np.array([[10.0, 0.0], [0.0, 10.0], [-10.0, 0.0]])
-    guide = leader_guidance([0.0, 0.0], goals, 0.1, 2.0)
+    guide = leader_guidance([0.0, 0.0], goals, guidance_gains(0.1, 2.0))
     np.testing.assert_allclose(guide, 0.1 * goals)
     targets = np.array([[80.0, 90.0], [-100.0, 40.0]])
-    eta_goal = eta_target([-10.0, 40.0], targets, PAPER_OBSTACLES, **ETA_KW)
+    eta_goal = eta_target([-10.0, 40.0], targets, PAPER_OBSTACLES, RADIUS, ETA_RULE)
     assert eta_goal.shape == (2,)
     assert eta_goal[1] == 1.0
 
@@ -923,30 +978,22 @@ def test_broadcasting(batch_case):
 def test_shapes_that_do_not_broadcast_are_rejected(batch_case):
     b = batch_case
     with pytest.raises(ValueError, match=r"^v_ref"):
-        consensus_step(b["v"], np.zeros((4, 2)), b["adj"], 0, 0.2)
+        consensus_step(b["v"], np.zeros((4, 2)), b["adj"], 0, GAINS)
     with pytest.raises(ValueError, match=r"^eta"):
-        formation_input(b["q"], b["delta"], np.ones(4), b["adj"], 0.05)
+        formation_input(b["q"], b["delta"], np.ones(4), b["adj"], GAINS)
     with pytest.raises(ValueError, match=r"^velocities"):
-        consensus_step(np.zeros((4, 2)), [0.0, 0.0], b["adj"], 0, 0.2)
+        consensus_step(np.zeros((4, 2)), [0.0, 0.0], b["adj"], 0, GAINS)
     with pytest.raises(ValueError, match=r"^delta"):
-        formation_input(b["q"], np.zeros((2, 5, 2)), 0.5, b["adj"], 0.05)
+        formation_input(b["q"], np.zeros((2, 5, 2)), 0.5, b["adj"], GAINS)
 
 
 @pytest.mark.parametrize(
     ("call", "field"),
     [
-        (lambda a: consensus_step(np.zeros((5, 2)), [0, 0], a, 5, 0.2), "leader"),
-        (lambda a: consensus_step(np.zeros((5, 2)), [0, 0], a, 0, 0.0), "gamma"),
-        (lambda a: consensus_step(np.zeros((5, 2)), [0, np.nan], a, 0, 0.2), "v_ref"),
-        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((5, 2)), 0.0, a, 0.1), "eta"),
-        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((5, 2)), 1.0, a, -1), "epsilon"),
-        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((4, 2)), 1.0, a, 0.1), "delta"),
-        (lambda a: repulsion([0.0, 0.0], SCENE, -1.0, 5.0), "gain"),
-        (lambda a: repulsion([0.0, 0.0], SCENE, 1.0, 0.0), "safety_radius"),
-        (lambda a: repulsion([0.0, 0.0], SCENE, 1.0, 5.0, 0.0), "max_step"),
-        (lambda a: eta_target([0, 0], [1, 1], SCENE, 14, 5, 40, 1.5), "eta_min"),
-        (lambda a: eta_update(1.0, 0.5, 0.0, 0.1), "rate"),
-        (lambda a: leader_guidance([0, 0], [1, 1], 0.5, 0.0), "cruise_speed"),
+        (lambda a: consensus_step(np.zeros((5, 2)), [0, 0], a, 5, GAINS), "leader"),
+        (lambda a: consensus_step(np.zeros((5, 2)), [0, np.nan], a, 0, GAINS), "v_ref"),
+        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((5, 2)), 0.0, a, GAINS), "eta"),
+        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((4, 2)), 1.0, a, GAINS), "delta"),
         (
             lambda a: formation_cost(
                 np.zeros((5, 2)), np.zeros((5, 2)), np.zeros((5, 2)), [0, 0], a, 0.0
@@ -956,8 +1003,52 @@ def test_shapes_that_do_not_broadcast_are_rejected(batch_case):
     ],
 )
 def test_invalid_arguments_name_the_argument(batch_case, call, field):
-    with pytest.raises(ValueError, match=rf"^{field}:"):
+    with pytest.raises(FieldError, match=rf"^{field}:") as info:
         call(batch_case["adj"])
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize(
+    ("model", "field", "value"),
+    [
+        (ControlGains, "gamma", 0.0),
+        (ControlGains, "epsilon", -1.0),
+        (ControlGains, "repulsion_gain", -1.0),
+        (ControlGains, "safety_radius", 0.0),
+        (ControlGains, "repulsion_max_step", 0.0),
+        (ControlGains, "repulsion_max_step", -1.0),
+        (ControlGains, "repulsion_max_step", math.nan),
+        (ControlGains, "repulsion_max_step", math.inf),
+        (ControlGains, "cruise_speed", 0.0),
+        (EtaRule, "minimum", 1.5),
+        (EtaRule, "rate", 0.0),
+    ],
+)
+def test_invalid_gains_name_the_field(model, field, value):
+    """A gain out of range is refused where the gains are declared: the ValidationError (a
+    ValueError) names the field on a line of its own."""
+    with pytest.raises(ValidationError, match=rf"(?m)^{field}$"):
+        model(**{field: value})
+
+
+@pytest.mark.parametrize(
+    ("call", "field"),
+    [
+        (lambda a: consensus_step(np.zeros((5, 2)), [0, 0], a, 0, 0.2), "gains"),
+        (lambda a: formation_input(np.zeros((5, 2)), np.zeros((5, 2)), 1.0, a, 0.1), "gains"),
+        (lambda a: repulsion([0.0, 0.0], SCENE, {"repulsion_gain": 2.0}), "gains"),
+        (lambda a: leader_guidance([0, 0], [1, 1], 0.5), "gains"),
+        (lambda a: eta_target([0, 0], [1, 1], SCENE, 14.0, ETA_RULE, 5.0), "gains"),
+        (lambda a: eta_target([0, 0], [1, 1], SCENE, 14.0, GAINS), "rule"),
+        (lambda a: eta_update(1.0, 0.5, 0.1, 0.1), "rule"),
+    ],
+)
+def test_gains_of_another_type_are_refused(batch_case, call, field):
+    """A law given loose numbers (the old signatures) or the wrong model instead of its
+    ControlGains or EtaRule raises a FieldError naming the argument."""
+    with pytest.raises(FieldError, match=rf"^{field}:") as info:
+        call(batch_case["adj"])
+    assert info.value.field == field
 
 
 def test_obstacles_validation_and_copy():
@@ -983,22 +1074,22 @@ def test_inputs_are_never_modified(batch_case, make_readonly):
     ro = {k: make_readonly(v) for k, v in b.items() if k != "adj"}
     ctl = {k: v.copy() for k, v in b.items() if k != "adj"}
     calls = [
-        (consensus_step, (ro["v"], ro["v_ref"], adj, 1, 0.2)),
-        (formation_input, (ro["q"], ro["delta"], ro["eta"], adj, 0.05)),
+        (consensus_step, (ro["v"], ro["v_ref"], adj, 1, GAINS)),
+        (formation_input, (ro["q"], ro["delta"], ro["eta"], adj, GAINS)),
         (formation_cost, (ro["q"], ro["qn"], ro["delta"], ro["v_ref"], adj, 0.1)),
-        (repulsion, (ro["pts"], SCENE, 2.0, 5.0, 1.0)),
+        (repulsion, (ro["pts"], SCENE, GAINS)),
         (obstacle_clearance, (ro["pts"], SCENE)),
         (
             eta_target,
-            (ro["pts"], make_readonly([80.0, 90.0]), PAPER_OBSTACLES, 14.0, 5.0, 40.0, 0.3),
+            (ro["pts"], make_readonly([80.0, 90.0]), PAPER_OBSTACLES, RADIUS, ETA_RULE),
         ),
-        (eta_update, (ro["eta"], make_readonly(np.full((2, 3), 0.5)), 0.1, 0.1)),
+        (eta_update, (ro["eta"], make_readonly(np.full((2, 3), 0.5)), ETA_RULE, 0.1)),
     ]
     # Single formation (no batch): the fast paths must not write either.
     calls += [
-        (consensus_step, (ro["v"][0, 0], ro["v_ref"][0, 0], adj, 1, 0.2)),
-        (formation_input, (ro["q"][0, 0], ro["delta"], 0.5, adj, 0.05)),
-        (repulsion, (ro["pts"][0, 0], SCENE, 2.0, 5.0)),
+        (consensus_step, (ro["v"][0, 0], ro["v_ref"][0, 0], adj, 1, GAINS)),
+        (formation_input, (ro["q"][0, 0], ro["delta"], 0.5, adj, GAINS)),
+        (repulsion, (ro["pts"][0, 0], SCENE, REPULSION)),
     ]
     for func, args in calls:
         out = func(*args)
@@ -1008,35 +1099,29 @@ def test_inputs_are_never_modified(batch_case, make_readonly):
     out = leader_guidance(
         ro["pts"],
         make_readonly([80.0, 90.0]),
-        0.5,
-        2.0,
+        GAINS,
         center_xy=ro["pts"],
         footprint=3.0,
         obstacles=SCENE,
-        repulsion_gain=2.0,
-        safety_radius=5.0,
         dt=0.1,
     )
     assert not np.shares_memory(out, ro["pts"])
     # Writable inputs: unchanged after every law.
     w = {k: v.copy() for k, v in b.items() if k != "adj"}
-    consensus_step(w["v"], w["v_ref"], adj, 1, 0.2)
-    formation_input(w["q"], w["delta"], w["eta"], adj, 0.05)
+    consensus_step(w["v"], w["v_ref"], adj, 1, GAINS)
+    formation_input(w["q"], w["delta"], w["eta"], adj, GAINS)
     formation_cost(w["q"], w["qn"], w["delta"], w["v_ref"], adj, 0.1)
-    repulsion(w["pts"], SCENE, 2.0, 5.0, 1.0)
+    repulsion(w["pts"], SCENE, GAINS)
     obstacle_clearance(w["pts"], SCENE)
-    eta_target(w["pts"], [80.0, 90.0], PAPER_OBSTACLES, **ETA_KW)
-    eta_update(w["eta"], w["eta"] * 0.5, 0.1, 0.1)
+    eta_target(w["pts"], [80.0, 90.0], PAPER_OBSTACLES, RADIUS, ETA_RULE)
+    eta_update(w["eta"], w["eta"] * 0.5, ETA_RULE, 0.1)
     leader_guidance(
         w["pts"],
         [80.0, 90.0],
-        0.5,
-        2.0,
+        GAINS,
         center_xy=w["pts"],
         footprint=3.0,
         obstacles=SCENE,
-        repulsion_gain=2.0,
-        safety_radius=5.0,
         dt=0.1,
     )
     for key in w:
@@ -1049,13 +1134,14 @@ def test_inputs_are_never_modified(batch_case, make_readonly):
         (lambda: Obstacles([[0.0, 1.0], [0.0, 1.0]]), "rectangles"),
         (lambda: Obstacles(circles=[[0.0, 0.0, 1.0, 2.0]]), "circles"),
         (lambda: obstacle_clearance([0.0, 0.0], [[0.0, 1.0, 0.0, 1.0]]), "obstacles"),
-        (lambda: repulsion([0.5, 1.2], Obstacles([[0, 1, 0, 1]]), 1.0, 5.0, np.nan), "max_step"),
-        (lambda: repulsion([0.5, 1.2], Obstacles([[0, 1, 0, 1]]), 1.0, 5.0, -1.0), "max_step"),
-        (lambda: eta_update(0.5, 5.0, 1.0, 0.1), "goal"),
-        (lambda: eta_update(0.0, 0.5, 1.0, 0.1), "eta"),
+        (lambda: eta_update(0.5, 5.0, EtaRule(rate=1.0), 0.1), "goal"),
+        (lambda: eta_update(0.0, 0.5, EtaRule(rate=1.0), 0.1), "eta"),
     ],
 )
 def test_bad_arguments_name_themselves(call, name):
-    """Wrong types, shapes and out-of-range values raise ValueError naming the argument."""
-    with pytest.raises(ValueError, match=rf"^{name}"):
+    """Wrong types, shapes and out-of-range values raise a FieldError (a ValueError) naming
+    the argument. (A bad repulsion cap is refused by ControlGains itself:
+    test_invalid_gains_name_the_field.)"""
+    with pytest.raises(FieldError, match=rf"^{name}") as info:
         call()
+    assert info.value.field == name

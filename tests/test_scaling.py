@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crlbswarm import Scenario, simulate
-from crlbswarm.simulation import SEPARATION_BRUTE_FORCE_MAX, _min_separation
+from crlbswarm.spatial import SEPARATION_BRUTE_FORCE_MAX, min_separation
 
 
 def brute_force(q: np.ndarray) -> float:
@@ -36,7 +36,7 @@ def test_min_separation_equals_all_pairs(seed, n, layout):
         q[: n // 2] = rng.normal(0.0, 1e-3, (n // 2, 2))
     elif layout == "duplicates":
         q = np.round(q / 10.0) * 10.0
-    assert _min_separation(q) == pytest.approx(brute_force(q), rel=1e-12, abs=1e-15)
+    assert min_separation(q) == pytest.approx(brute_force(q), rel=1e-12, abs=1e-15)
 
 
 @settings(max_examples=40)
@@ -50,7 +50,7 @@ def test_min_separation_any_scale_and_aspect(n, scale, aspect, seed):
     """Very elongated or very small or large swarms: the grid adapts, the answer is exact."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(0.0, scale, (n, 2)) * np.array([1.0, aspect])
-    assert _min_separation(q) == pytest.approx(brute_force(q), rel=1e-12, abs=1e-300)
+    assert min_separation(q) == pytest.approx(brute_force(q), rel=1e-12, abs=1e-300)
 
 
 def test_large_swarm_mission_runs_with_exact_separation():

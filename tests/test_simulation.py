@@ -314,10 +314,8 @@ def test_start_positions_and_noise(paper, batch6):
     ctl = sc.control
     pred = (
         q
-        + formation_input(q, delta, batch6.eta[:, :-1], sc.adjacency, ctl.epsilon)
-        + repulsion(
-            q, sc.obstacle_set, ctl.repulsion_gain, ctl.safety_radius, ctl.repulsion_max_step
-        )
+        + formation_input(q, delta, batch6.eta[:, :-1], sc.adjacency, ctl)
+        + repulsion(q, sc.obstacle_set, ctl)
         + batch6.velocities[:, :-1] * sc.time.step
     )
     noise = (qn - pred).reshape(-1)
@@ -371,7 +369,7 @@ def test_each_step_is_the_composition_of_the_laws(noiseless_paper, ref):
     input and repulsion, the consensus of eq. (14), eta_update(eta_target(...)), the cost,
     the clearance, the separation and the CRLB, at every step of two runs."""
     sc, res = noiseless_paper
-    ctl, eta_cfg, dt = sc.control, sc.eta, sc.time.step
+    ctl, eta_rule, dt = sc.control, sc.eta, sc.time.step
     target = np.array(sc.target)
     delta = sc.formation - target
     radius = float(np.max(np.hypot(*delta.T)))
@@ -386,13 +384,10 @@ def test_each_step_is_the_composition_of_the_laws(noiseless_paper, ref):
             vref[b, k] = leader_guidance(
                 res.positions[b, k, leader],
                 target + eta[b, k] * delta[leader],
-                ctl.guidance_gain,
-                ctl.cruise_speed,
+                ctl,
                 center_xy=centre[b, k],
                 footprint=eta[b, k] * radius,
                 obstacles=obstacles,
-                repulsion_gain=ctl.repulsion_gain,
-                safety_radius=ctl.safety_radius,
                 dt=dt,
             )
     np.testing.assert_allclose(res.reference_velocity, vref, rtol=0, atol=1e-12)
@@ -400,31 +395,20 @@ def test_each_step_is_the_composition_of_the_laws(noiseless_paper, ref):
     # Motion, eq. (3) with eq. (19) and (18).
     pred = (
         q
-        + formation_input(q, delta, eta[:, :-1], adj, ctl.epsilon)
-        + repulsion(q, obstacles, ctl.repulsion_gain, ctl.safety_radius, ctl.repulsion_max_step)
+        + formation_input(q, delta, eta[:, :-1], adj, ctl)
+        + repulsion(q, obstacles, ctl)
         + res.velocities[:, :-1] * dt
     )
     np.testing.assert_allclose(qn, pred, rtol=0, atol=1e-12)
     # Consensus, eq. (14) corrected; the followers start at rest.
     np.testing.assert_array_equal(res.velocities[:, 0, 1:], 0.0)
-    cons = consensus_step(
-        res.velocities[:, :-1], res.reference_velocity[:, :-1], adj, leader, ctl.gamma
-    )
+    cons = consensus_step(res.velocities[:, :-1], res.reference_velocity[:, :-1], adj, leader, ctl)
     np.testing.assert_allclose(res.velocities[:, 1:, 1:], cons[:, :, 1:], rtol=0, atol=1e-14)
     # Scale factor: rate-limited step toward the free-width rule; starts at 1.
     assert np.all(eta[:, 0] == 1.0)
-    goal = eta_target(
-        centre[:, :-1],
-        target,
-        obstacles,
-        radius,
-        ctl.safety_radius,
-        eta_cfg.lookahead,
-        eta_cfg.minimum,
-        eta_cfg.samples,
-    )
+    goal = eta_target(centre[:, :-1], target, obstacles, radius, eta_rule, ctl)
     np.testing.assert_allclose(
-        eta[:, 1:], eta_update(eta[:, :-1], goal, eta_cfg.rate, dt), rtol=0, atol=1e-12
+        eta[:, 1:], eta_update(eta[:, :-1], goal, eta_rule, dt), rtol=0, atol=1e-12
     )
     # Cost, clearance, separation, CRLB.
     cost = formation_cost(q, qn, delta, res.reference_velocity[:, :-1], adj, dt)

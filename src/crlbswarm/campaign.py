@@ -165,9 +165,12 @@ class CampaignSpec(ConfigModel):
             Scenario data, ready for :meth:`crlbswarm.Scenario.from_dict`.
         """
         try:
-            return scenario_data(self.base, "base")[1]
-        except ScenarioError as exc:  # not valid TOML
-            raise FieldError("base", f"cannot read scenario {self.base!r}: {exc}") from None
+            return scenario_data(self.base)[1]
+        except ScenarioError as exc:
+            # "no such scenario" names the base itself; a broken file names the file.
+            raise FieldError(
+                "base", exc.reason if exc.source == "scenario" else str(exc)
+            ) from None
 
     def variants(self) -> list[dict[str, Any]]:
         """The changed fields of every variant, in a fixed order.

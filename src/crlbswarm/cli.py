@@ -42,7 +42,7 @@ def _option(target: Any, fields: dict[str, str], *flags: str, field: str, **kwar
     """Add the option ``flags`` to ``target`` (a parser or a group of it) and record in
     ``fields`` that it sets the library argument ``field`` (for error messages)."""
     target.add_argument(*flags, **kwargs)
-    fields[field] = flags[0]
+    fields[field] = "/".join(flags)  # as argparse names an option with aliases
 
 
 def _add_radar_options(parser: argparse.ArgumentParser, fields: dict[str, str]) -> None:

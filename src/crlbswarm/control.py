@@ -533,7 +533,8 @@ def leader_guidance(
     goal_velocity : array_like, shape (..., 2), default (0, 0)
         Velocity of the goal :math:`\dot{\mathbf g}` (the target's), m/s.
     footprint : float, default 0
-        Radius :math:`\rho` of the formation's disc, m; 0 turns steering off.
+        Radius :math:`\rho` of the formation's disc, m; 0 turns steering off, and so does
+        ``gains.formation_steering = False`` (as in a mission).
     obstacles : Obstacles, optional
         Obstacles for the steering term.
     dt : float, default 0.1
@@ -563,7 +564,8 @@ def leader_guidance(
     _reference_batch(
         _flat(q, shape[:-1], (2,)), _flat(goal, shape[:-1], (2,)), _flat(c, shape[:-1], (2,)),
         _flat(tv, shape[:-1], (2,)), g.guidance_gain, g.cruise_speed, obs.rectangles,
-        obs.circles, g.repulsion_gain, g.safety_radius, rho, step, out,
+        obs.circles, g.repulsion_gain, g.safety_radius, rho if g.formation_steering else 0.0,
+        step, out,
     )  # fmt: skip
     return out.reshape(shape)
 
@@ -700,7 +702,8 @@ def eta_target(
         Nominal formation radius :math:`R` (at :math:`\eta = 1`), m.
     rule : EtaRule
         Its ``margin`` (clearance to keep, m), ``lookahead`` (m), ``minimum``
-        (:math:`\eta_\min`) and ``samples`` (points along the segment).
+        (:math:`\eta_\min`) and ``samples`` (points along the segment); with
+        ``enabled = False`` the goal is 1 everywhere, as in a mission.
     gains : ControlGains, optional
         Its ``safety_radius`` is the margin when ``rule.margin`` is not set.
 
@@ -715,10 +718,12 @@ def eta_target(
     r = float(_v.positive(radius, "radius"))
     rl = _check_rule(rule)
     mrg = rl.margin_for(_check_gains(gains))
+    obs = check_obstacles(obstacles)
+    if not rl.enabled:
+        return np.ones(shape[:-1])
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))
     out = np.empty(cb.shape[0])
-    obs = check_obstacles(obstacles)
     _eta_goal_batch(
         cb, sb, r, obs.rectangles, obs.circles, mrg, rl.lookahead, rl.samples, rl.minimum, out
     )
@@ -738,7 +743,8 @@ def eta_update(eta: object, goal: object, rule: EtaRule, dt: float) -> np.ndarra
     goal : float or array_like
         Desired scale from :func:`eta_target`.
     rule : EtaRule
-        Its ``rate`` is the largest change per second :math:`\rho`, 1/s.
+        Its ``rate`` is the largest change per second :math:`\rho`, 1/s; with
+        ``enabled = False`` the result is 1, as in a mission.
     dt : float
         Time step :math:`\Delta T`, s.
 
@@ -749,8 +755,11 @@ def eta_update(eta: object, goal: object, rule: EtaRule, dt: float) -> np.ndarra
     """
     e = _scale(eta, "eta")
     g = _scale(goal, "goal")
-    step = _check_rule(rule).rate * float(_v.positive(dt, "dt"))
+    rl = _check_rule(rule)
+    step = rl.rate * float(_v.positive(dt, "dt"))
     shape = _v.broadcast("goal", e.shape, g.shape)
+    if not rl.enabled:
+        return np.ones(shape)
     out = np.empty(int(np.prod(shape, dtype=int)))
     _eta_rate_limit_batch(_flat(e, shape, ()), _flat(g, shape, ()), step, out)
     return out.reshape(shape)

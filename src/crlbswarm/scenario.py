@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, create_model, field_validator, model_validator
 
-from ._config import ConfigModel, model_to_toml, read_toml, read_toml_file, validate
+from ._config import ConfigModel, model_to_toml, read_toml, validate
 from .control import ControlGains, EtaRule
 from .design import optimal_formation
 from .errors import FieldError, ScenarioError
@@ -50,7 +50,6 @@ __all__ = [
     "RadarConfig",
     "RectangleObstacle",
     "Scenario",
-    "ScenarioError",
     "TargetMotionConfig",
     "TimeConfig",
     "UavsConfig",
@@ -491,29 +490,25 @@ class _BuiltinScenarios(Mapping[str, dict[str, Any]]):
 BUILTIN_SCENARIOS: Mapping[str, dict[str, Any]] = _BuiltinScenarios()
 
 
-def scenario_data(name_or_path: str | Path, field: str = "scenario") -> tuple[str, dict[str, Any]]:
+def scenario_data(name_or_path: str | Path) -> tuple[str, dict[str, Any]]:
     """The data of a built-in scenario or of a scenario file, not yet validated.
 
     Parameters
     ----------
     name_or_path : str or path-like
         A built-in name or the path of a ``.toml`` file.
-    field : str, default "scenario"
-        The argument or field that named it, for error messages.
 
     Returns
     -------
     source : str
-        A description of where the data came from, for error messages.
+        Where the data came from (``"scenario 'paper'"`` or the file name), for messages.
     data : dict
         The parsed TOML document.
 
     Raises
     ------
-    FieldError
-        If there is no such scenario or file, or it cannot be read.
     ScenarioError
-        If the file is not valid TOML.
+        If there is no such scenario or file, or it cannot be read or parsed.
     """
     key = str(name_or_path)
     if key in BUILTIN_SCENARIOS:
@@ -521,8 +516,13 @@ def scenario_data(name_or_path: str | Path, field: str = "scenario") -> tuple[st
     path = Path(name_or_path)
     if not path.is_file():
         known = ", ".join(BUILTIN_SCENARIOS)
-        raise FieldError(field, f"{key!r} is neither a built-in scenario ({known}) nor a file")
-    text, _ = read_toml_file(path, field)
+        raise ScenarioError(
+            "scenario", "", f"{key!r} is neither a built-in scenario ({known}) nor a file"
+        )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
     return str(path), read_toml(text, str(path), ScenarioError)
 
 
@@ -543,9 +543,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     Raises
     ------
     ScenarioError
-        If the file is invalid (one line naming the field).
-    FieldError
-        If there is no such scenario or file.
+        If there is no such scenario or file, or it is invalid (one line naming the
+        field).
     """
     source, data = scenario_data(name_or_path)
     return Scenario.from_dict(data, source)
