@@ -21,7 +21,7 @@ from .errors import ConfigError, FieldError
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
-    import tomli as tomllib
+    import tomli as tomllib  # type: ignore[import-not-found, no-redef, unused-ignore]
 
 __all__ = ["ConfigModel", "describe", "model_to_toml", "read_toml", "read_toml_file", "validate"]
 

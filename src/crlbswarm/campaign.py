@@ -192,8 +192,9 @@ class CampaignSpec(ConfigModel):
                 row = {}
                 for name, dist in self.random.fields.items():
                     if dist.uniform is not None:
-                        row[name] = float(rng.uniform(*dist.uniform))
-                    else:
+                        low, high = dist.uniform
+                        row[name] = float(rng.uniform(low, high))
+                    elif dist.choice is not None:  # (exactly one of the two is set)
                         row[name] = dist.choice[int(rng.integers(len(dist.choice)))]
                 out.append(row)
             return out
@@ -356,7 +357,7 @@ def run_campaign(
     folder = Path(out)
     scenarios, tasks = plan_tasks(spec)  # validate everything before anything runs
     variants = spec.variants()
-    rows = {"variant": list(range(len(variants)))}
+    rows: dict[str, list[Any]] = {"variant": list(range(len(variants)))}
     for name in sorted({k for v in variants for k in v}):
         rows[name] = [v.get(name) for v in variants]
     try:

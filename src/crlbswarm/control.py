@@ -193,8 +193,9 @@ class EtaRule(ConfigModel):
 
 
 #: The typed tuples the compiled kernels receive (derived from the declarations above).
-ControlGainsTuple = namedtuple("ControlGainsTuple", list(ControlGains.model_fields))
-EtaRuleTuple = namedtuple("EtaRuleTuple", list(EtaRule.model_fields))
+# (Built from the declarations, so type checkers cannot see their fields.)
+ControlGainsTuple = namedtuple("ControlGainsTuple", list(ControlGains.model_fields))  # type: ignore[misc]
+EtaRuleTuple = namedtuple("EtaRuleTuple", list(EtaRule.model_fields))  # type: ignore[misc]
 
 _DEFAULT_GAINS = ControlGains()
 

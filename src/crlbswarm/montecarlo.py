@@ -145,6 +145,7 @@ def monte_carlo_mse(
     n = _v.count(n_trials, "n_trials", 2)
     batch = np.broadcast_to(q, (n, *q.shape))
     ranges = measure_ranges(batch, s, h, radar, rng)
+    assert rng is not None  # (measure_ranges refuses anything but a Generator)
     init = None
     if prior_std is not None:
         spread = _v.scalar(prior_std, "prior_std")

@@ -16,7 +16,7 @@ import os
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -141,7 +141,7 @@ def _csv_text(columns: Mapping[str, Any]) -> str:
     lengths = {a.shape[0] for a in arrays}
     if len(lengths) != 1 or any(a.ndim != 1 for a in arrays):
         raise FieldError("columns", "every column must be 1-D and of the same length")
-    buf: IO[str] = io.StringIO()
+    buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
     for row in zip(*arrays, strict=True):

@@ -9,10 +9,11 @@ they work on a machine without a display. Only the CLI saves files.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
-from matplotlib.figure import Figure
+from matplotlib.figure import Figure, SubFigure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
 from .errors import FieldError
@@ -31,13 +32,19 @@ __all__ = [
     "plot_optimal_elevation",
 ]
 
-_STYLES = {
+_STYLES: dict[str, dict[str, Any]] = {
     "optimal": {"color": "C3", "lw": 2.2, "marker": "o", "ms": 4},
     "fixed_polygon": {"color": "C0", "marker": "s", "ms": 3.5},
     "arc": {"color": "C2", "marker": "^", "ms": 3.5},
     "line": {"color": "C1", "marker": "v", "ms": 3.5},
     "random_disc": {"color": "C4", "marker": "D", "ms": 3},
 }
+
+
+def _figure_of(ax: Axes) -> Figure:
+    """The (root) figure holding ``ax``."""
+    fig = ax.figure
+    return fig.figure if isinstance(fig, SubFigure) else fig
 
 
 def plot_crlb_vs_altitude(
@@ -66,7 +73,7 @@ def plot_crlb_vs_altitude(
     if ax is None:
         fig = Figure(figsize=(6.4, 7.2), layout="constrained")
         ax, ratio_ax = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
-    fig = ax.figure
+    fig = _figure_of(ax)
     h = sweep.altitude
     for name, values in sweep.crlb.items():
         label = FORMATION_LABELS.get(name, name)
@@ -121,7 +128,7 @@ def plot_optimal_elevation(curve: ElevationCurve, ax: Axes | None = None) -> Fig
     """
     if ax is None:
         ax = Figure(figsize=(6.4, 4.0), layout="constrained").add_subplot()
-    fig = ax.figure
+    fig = _figure_of(ax)
     ax.plot(curve.altitude, np.degrees(curve.elevation), color="C3", lw=2, label=r"$\phi^*(H)$")
     upper = np.degrees(np.arctan(np.sqrt(2.0)))
     ax.axhline(
@@ -250,7 +257,7 @@ def plot_mission_trajectories(
         ax = Figure(
             figsize=(6.4 if height > 4.5 else 9.0, height), layout="constrained"
         ).add_subplot()
-    fig = ax.figure
+    fig = _figure_of(ax)
     _draw_obstacles(ax, result)
     leader = result.scenario.uavs.leader
     for m in range(q.shape[1]):
@@ -328,7 +335,7 @@ def plot_mission_timeseries(
     if len(axes) != 3:
         raise FieldError("axes", f"expected three axes, got {len(axes)}")
     ax_crlb, ax_cost, ax_eta = axes
-    fig = ax_crlb.figure
+    fig = _figure_of(ax_crlb)
     t = result.time
     ax_crlb.plot(t, result.crlb[b], color="C0", label="CRLB at the UAV positions")
     ax_crlb.axhline(
@@ -392,7 +399,7 @@ def plot_estimator_vs_altitude(
     if len(axes) != 2:
         raise FieldError("axes", f"expected two axes, got {len(axes)}")
     ax, ratio_ax = axes
-    fig = ax.figure
+    fig = _figure_of(ax)
     h = sweep.altitude
     cols = sweep.columns()
     for name in sweep.results:
@@ -447,8 +454,8 @@ def plot_estimation_timeseries(
     matplotlib.figure.Figure
         The figure holding the axes.
     """
-    error = result.estimation_error
-    if error is None:
+    error, pcrb = result.estimation_error, result.pcrb
+    if error is None or pcrb is None:
         raise FieldError("result", "has no estimates (simulate a scenario with estimation on)")
     if axes is None:
         fig = Figure(figsize=(6.4, 6.0), layout="constrained")
@@ -456,11 +463,11 @@ def plot_estimation_timeseries(
     if len(axes) != 2:
         raise FieldError("axes", f"expected two axes, got {len(axes)}")
     ax, ax_c = axes
-    fig = ax.figure
+    fig = _figure_of(ax)
     t = result.time
     ax.plot(t, np.sqrt(np.mean(error**2, axis=0)), color="C0",
             label=f"RMS estimation error ({result.n_runs} runs)")  # fmt: skip
-    ax.plot(t, np.sqrt(result.pcrb), color="k", ls="--", lw=1.0, label=r"$\sqrt{\mathrm{PCRB}}$")
+    ax.plot(t, np.sqrt(pcrb), color="k", ls="--", lw=1.0, label=r"$\sqrt{\mathrm{PCRB}}$")
     ax.plot(t, np.sqrt(result.crlb.mean(axis=0)), color="0.5", ls=":", lw=1.0,
             label=r"$\sqrt{\mathrm{CRLB}}$ of one snapshot")  # fmt: skip
     ax.set_yscale("log")

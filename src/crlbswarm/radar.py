@@ -160,7 +160,7 @@ class RadarParameter:
             The linear value.
         """
         convert = dbm_to_watts if self.db_unit == "dBm" else db_to_linear
-        return np.asarray(convert(value))
+        return np.asarray(convert(np.asarray(value, dtype=float)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,7 +243,7 @@ class Radar:
                 f"A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number ({a!r}); "
                 "the parameters are out of range",
             )
-        a = float(a) if np.ndim(a) == 0 else _readonly(a)
+        a = float(a) if np.ndim(a) == 0 else _readonly(np.asarray(a))
         object.__setattr__(self, "_snr_constant", a)
 
     # -- constructors -------------------------------------------------------------
@@ -451,7 +451,7 @@ def radar_field_names() -> tuple[str, ...]:
 _PARAMETERS = tuple(
     RadarParameter(
         name=f.name,
-        default=f.default,
+        default=float(f.default),  # type: ignore[arg-type]
         unit=f.metadata["unit"],
         doc=f.metadata["doc"],
         db_unit=f.metadata["db"],

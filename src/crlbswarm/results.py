@@ -160,13 +160,13 @@ class MissionResult:
         }
 
     def _estimation_metrics(self) -> dict[str, np.ndarray]:
-        error = self.estimation_error
-        if error is None:
+        error, variance = self.estimation_error, self.estimate_variance
+        if error is None or variance is None:
             return {}
         # A contiguous suffix, so each run's reduction does not depend on the batch.
         k0 = int(np.argmax(self.steady_state))
         tail_error = np.ascontiguousarray(error[:, k0:])
-        tail_std = np.sqrt(np.ascontiguousarray(self.estimate_variance[:, k0:]))
+        tail_std = np.sqrt(np.ascontiguousarray(variance[:, k0:]))
         return {
             "final_estimation_error_m": error[:, -1],
             "steady_rms_estimation_error_m": np.sqrt(np.mean(tail_error**2, axis=1)),
@@ -181,12 +181,12 @@ class MissionResult:
         """Batch figure of tracking efficiency: the RMS over runs of the estimation error,
         divided by the square root of the PCRB, averaged over the steady-state steps (1 for
         an efficient tracker). ``None`` without estimation."""
-        error = self.estimation_error
-        if error is None:
+        error, pcrb = self.estimation_error, self.pcrb
+        if error is None or pcrb is None:
             return None
         tail = self.steady_state
         rmse = np.sqrt(np.mean(error[:, tail] ** 2, axis=0))
-        return float(np.mean(rmse / np.sqrt(self.pcrb[tail])))
+        return float(np.mean(rmse / np.sqrt(pcrb[tail])))
 
     def run_index(self, run: object) -> int:
         """Check a run index of this batch.
@@ -308,7 +308,7 @@ class MissionResult:
         from . import __version__
 
         out = make_output_folder(folder, "folder")
-        arrays = {name: np.asarray(getattr(self, name)) for name in _ARRAY_FIELDS}
+        arrays: dict[str, Any] = {n: np.asarray(getattr(self, n)) for n in _ARRAY_FIELDS}
         arrays = {k: v for k, v in arrays.items() if v.dtype != object}  # None: not kept
         arrays["formation"] = self.scenario.formation
         paths = [out / name for name in RESULT_FILES]

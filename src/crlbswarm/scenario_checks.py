@@ -42,7 +42,7 @@ def check_scene(self: Scenario) -> None:
     _check_outside(obstacles, np.asarray(self.target)[None], "target")
     if self.uavs.start is not None:
         _check_outside(obstacles, np.asarray(self.uavs.start), "uavs.start")
-    else:
+    elif self.uavs.start_region is not None:  # (exactly one of the two is set)
         (x0, x1), (y0, y1) = self.uavs.start_region
         for i, ob in enumerate(self.obstacles):
             if _region_overlaps(ob.model_dump(), x0, x1, y0, y1):

@@ -64,8 +64,8 @@ def _streams(seed: int, count: int = 2) -> list[np.random.Generator]:
 
 
 def _start(scenario: Scenario, rng: np.random.Generator) -> np.ndarray:
-    if scenario.uavs.start is not None:
-        return np.array(scenario.uavs.start, dtype=float)
+    if scenario.uavs.start is not None or scenario.uavs.start_region is None:
+        return np.array(scenario.uavs.start, dtype=float)  # (exactly one of the two is set)
     (x0, x1), (y0, y1) = scenario.uavs.start_region
     return rng.uniform((x0, y0), (x1, y1), size=(scenario.uavs.count, 2))
 
@@ -184,8 +184,10 @@ class _ChunkBuffers:
         self.estimate_variance = np.zeros((chunk_runs, k + 1))
         self.x0 = np.zeros((chunk_runs, n_state))
         self.status = np.empty(chunk_runs, dtype=np.int64)
-        self.positions = None if keep else np.empty((chunk_runs, k + 1, m, 2))
-        self.velocities = None if keep else np.empty((chunk_runs, k + 1, m, 2))
+        # Trajectories of the chunk when the batch does not keep them (else unused, empty).
+        rows = 0 if keep else chunk_runs
+        self.positions = np.empty((rows, k + 1, m, 2))
+        self.velocities = np.empty((rows, k + 1, m, 2))
 
 
 def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers, pos: np.ndarray) -> Any:
@@ -213,8 +215,10 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
     """Simulate the runs ``lo .. lo + len(seeds) - 1`` of the batch."""
     n = len(seeds)
     hi = lo + n
-    pos = batch.positions[lo:hi] if batch.positions is not None else buf.positions[:n]
-    vel = batch.velocities[lo:hi] if batch.velocities is not None else buf.velocities[:n]
+    if batch.positions is not None and batch.velocities is not None:
+        pos, vel = batch.positions[lo:hi], batch.velocities[lo:hi]
+    else:
+        pos, vel = buf.positions[:n], buf.velocities[:n]
     truth = _draw_inputs(sc, seeds, buf, pos)
     x0 = buf.x0[:n]
     x0[:, :2] = truth[:, 0, :2] + np.asarray(sc.estimation.prior_offset)
@@ -244,7 +248,7 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
     batch.target[lo:hi] = truth[..., :2]
     batch.crlb[lo:hi] = crlb(pos, batch.target[lo:hi], sc.altitude, radar)
     batch.centroid[lo:hi] = pos.mean(axis=-2)
-    if sc.estimation.enabled:
+    if batch.estimate is not None and batch.estimate_variance is not None:  # estimation on
         batch.estimate[lo:hi] = buf.estimate[:n]
         batch.estimate_variance[lo:hi] = buf.estimate_variance[:n]
         batch.fim_sum += summed_range_information(pos, batch.target[lo:hi], sc.altitude, radar)
