@@ -4,7 +4,7 @@ Hypothesis runs derandomized with no deadline (CI machines are slow and noisy); 
 environment variable ``HYPOTHESIS_PROFILE=thorough`` for a longer local search.
 
 The ``ref`` fixture gives reference functions written from the model of the paper
-(PAPER_NOTES sec. 1), *not* from crlbswarm's formulas: the ranges are Gaussian with mean
+(the paper profile of docs/sensing-model.md), *not* from crlbswarm's formulas: the ranges are Gaussian with mean
 ``mu_m(s) = sqrt(|q_m - s|^2 + H^2)`` and variance
 ``var_m(s) = kappa sigma0^2 mu_m^4 / (p G_p beta0)`` built from the raw radar numbers, and
 the Fisher information is obtained from that likelihood by two textbook routes:
@@ -42,7 +42,7 @@ C_LIGHT = 299_792_458.0
 #: Complex-step size: small enough that the O(h^2) error is far below rounding.
 CS_STEP = 1e-30
 
-#: The paper profile of PAPER_NOTES sec. 1, in raw linear SI units.
+#: The paper profile of the paper profile of docs/sensing-model.md, in raw linear SI units.
 PAPER_PROFILE = {
     "tx_power": 0.1,  # p, W
     "noise_power": 1e-12,  # sigma0^2, W (-90 dBm)
@@ -141,7 +141,7 @@ def fim_expected_score(
 
 
 def information_weight(phi: np.ndarray, altitude: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """w(phi) = (A sin^4 phi / H^4 + 8 sin^2 phi / H^2) cos^2 phi (PAPER_NOTES sec. 2)."""
+    """w(phi) = (A sin^4 phi / H^4 + 8 sin^2 phi / H^2) cos^2 phi (docs/optimal-formation.md)."""
     s2 = np.sin(phi) ** 2
     return (a * s2**2 / altitude**4 + 8.0 * s2 / altitude**2) * np.cos(phi) ** 2
 

@@ -39,7 +39,7 @@ ALPHA = 1e-3
 #: Two-sided 95 % normal quantile, from SciPy (not from crlbswarm).
 Z95 = float(norm.ppf(0.975))
 
-#: The paper scenario's target (PAPER_NOTES sec. 4).
+#: The paper scenario's target (the paper scenario of docs/scenarios.md).
 TARGET = np.array([80.0, 90.0])
 #: Seed of the 20 000-trial efficiency run of F* at 20 m.
 SEED_FSTAR = 20_000
@@ -61,7 +61,7 @@ def reference_optimal_radius(ref, altitude):
 
 
 def reference_bound(ref, n_uavs, altitude):
-    """4 / sum(w) at the optimal elevation (PAPER_NOTES sec. 2)."""
+    """4 / sum(w) at the optimal elevation (docs/optimal-formation.md)."""
     a = float(ref.snr_constant(ref.radar_params()))
     phi = ref.optimal_elevation_numeric(altitude, a)
     return 4.0 / (n_uavs * float(ref.information_weight(phi, altitude, a)))
@@ -94,7 +94,9 @@ def test_fstar_mse_reaches_the_crlb(fstar_20m, ref):
     assert res.n_trials == 20_000
     assert res.n_failed == 0
     assert res.crlb == pytest.approx(reference_crlb(ref, q, TARGET, 20.0), rel=1e-9)
-    assert res.crlb == pytest.approx(5.3476e-3, rel=1e-4)  # PAPER_NOTES sec. 1
+    assert res.crlb == pytest.approx(
+        5.3476e-3, rel=1e-4
+    )  # the paper profile of docs/sensing-model.md
     assert 0.9 <= res.ratio <= 1.1
     half = 0.5 * (res.ratio_ci[1] - res.ratio_ci[0])
     assert abs(res.ratio - 1.0) <= half * norm.isf(ALPHA / 2) / Z95
@@ -138,7 +140,7 @@ BENCHMARKS = ("fixed_polygon", "arc", "line", "random_disc")
 
 
 def benchmark_formation(name, altitude, rng):
-    """(uav_xy, prior_std) of a benchmark around TARGET (formations of PAPER_NOTES sec. 2).
+    """(uav_xy, prior_std) of a benchmark around TARGET (formations of docs/optimal-formation.md).
 
     The line gets a prior of r*/8 per axis: a line of UAVs cannot tell the target from its
     mirror image, and the prior picks the wrong side only if it lands beyond the line

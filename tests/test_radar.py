@@ -32,7 +32,7 @@ FIELDS = [
 
 
 def test_defaults_are_the_paper_profile(ref):
-    """Every default equals the table of PAPER_NOTES sec. 1."""
+    """Every default equals the table of the paper profile of docs/sensing-model.md."""
     radar = Radar()
     for name, value in ref.PAPER_PROFILE.items():
         assert getattr(radar, name) == value

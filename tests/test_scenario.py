@@ -1,6 +1,6 @@
 """Mission scenarios (crlbswarm.scenario): the paper scenario, validation, TOML round trip.
 
-The paper scenario is checked field by field against PAPER_NOTES sec. 4 and the profile of
+The paper scenario is checked field by field against the paper scenario of docs/scenarios.md and the profile of
 tests/conftest.py; its formation F* against the reference optimal elevation (a root of
 dw/dphi found numerically in conftest). Every invalid input listed in the issue must raise
 :class:`ScenarioError` (a ValueError) with one line that starts with the source's name and
@@ -49,7 +49,7 @@ def laplacian_by_hand(n: int, edges) -> np.ndarray:
 
 
 def test_paper_scenario_matches_the_notes(ref):
-    """PAPER_NOTES sec. 4, item by item."""
+    """the paper scenario of docs/scenarios.md, item by item."""
     sc = load_scenario("paper")
     assert sc.name == "paper"
     assert sc.uavs.count == 6
@@ -325,7 +325,7 @@ def test_load_file_reports_errors_with_its_path(tmp_path):
 @pytest.mark.parametrize(("kind", "n"), [("ring", 6), ("complete", 6), ("path", 7), ("star", 5)])
 def test_stability_limits_are_enforced_at_the_computed_bound(kind, n):
     """epsilon just below 2/lambda_max(L) (numpy on a hand-built Laplacian) passes, just
-    above fails; gamma must stay below PAPER_NOTES' 1/max degree (which implies the exact
+    above fails; gamma must stay below the 1/max degree of docs/control.md (which implies the exact
     consensus limit 2/lambda_max(L_ff)). Failures name the field."""
     edges = {
         "ring": [(i, (i + 1) % n) for i in range(n)],

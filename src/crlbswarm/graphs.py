@@ -15,8 +15,8 @@ Stability of the two discrete-time linear laws (not in the paper; standard resul
 * Leader-follower velocity consensus, eq. (14) corrected: the followers' error obeys
   :math:`e_{k+1} = (I - \gamma L_{ff})\, e_k` with :math:`L_{ff}` the follower block of the
   Laplacian (positive definite for a connected graph), which converges iff
-  :math:`\gamma\,\lambda_{\max}(L_{ff}) < 2`. The sufficient condition quoted in
-  PAPER_NOTES, :math:`\gamma < 1/\Delta` (:math:`\Delta` the largest degree), also makes
+  :math:`\gamma\,\lambda_{\max}(L_{ff}) < 2`. The sufficient condition crlbswarm's
+  scenarios require, :math:`\gamma < 1/\Delta` (:math:`\Delta` the largest degree), also makes
   each update a convex combination, so no velocity ever exceeds the leader's.
 """
 
@@ -277,7 +277,7 @@ def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:
         The leader-follower consensus converges if :math:`\gamma` is below this value (iff,
         for graphs of up to :data:`EXACT_EIGEN_MAX_NODES` UAVs; above, the Gershgorin bound
         is used as in :func:`formation_step_limit`). Scenarios require the stricter
-        :math:`\gamma < 1/\Delta` of PAPER_NOTES, under which no velocity overshoots.
+        :math:`\gamma < 1/\Delta` (``docs/control.md``), under which no velocity overshoots.
     """
     lap = adjacency.laplacian()
     keep = np.setdiff1d(np.arange(adjacency.n_nodes), [leader])

@@ -342,8 +342,9 @@ class Radar:
 
         The SNR at range :math:`d` is :math:`\kappa A / d^4` and the range variance is
         :math:`d^4 / A` (Sec. II). With the paper profile :math:`A \approx 1.3463 \times 10^8`
-        (PAPER_NOTES quotes it in m^4, treating :math:`\kappa` as a pure number; with
-        :math:`\kappa` in m^2, :math:`A` is in m^2 and :math:`\sigma_m^2` in m^2).
+        (in m^4 if :math:`\kappa` is taken as a pure number; with :math:`\kappa` in m^2,
+        :math:`A` is in m^2 and :math:`\sigma_m^2` in m^2; see
+        ``docs/paper-defaults-and-errata.md``).
         """
         return self._snr_constant
 
