@@ -4,7 +4,8 @@ Hypothesis runs derandomized with no deadline (CI machines are slow and noisy); 
 environment variable ``HYPOTHESIS_PROFILE=thorough`` for a longer local search.
 
 The ``ref`` fixture gives reference functions written from the model of the paper
-(the paper profile of docs/sensing-model.md), *not* from crlbswarm's formulas: the ranges are Gaussian with mean
+(the paper profile of docs/sensing-model.md), *not* from crlbswarm's formulas: the ranges
+are Gaussian with mean
 ``mu_m(s) = sqrt(|q_m - s|^2 + H^2)`` and variance
 ``var_m(s) = kappa sigma0^2 mu_m^4 / (p G_p beta0)`` built from the raw radar numbers, and
 the Fisher information is obtained from that likelihood by two textbook routes:

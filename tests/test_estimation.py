@@ -3,7 +3,7 @@
 Every reference here is independent of crlbswarm:
 
 * the SNR constant ``A = p G_p beta0 / (kappa sigma0^2)`` is computed below from the raw
-  paper-profile numbers (the paper profile of docs/sensing-model.md), not taken from :class:`crlbswarm.Radar`;
+  paper-profile numbers (docs/sensing-model.md), not taken from :class:`crlbswarm.Radar`;
 * the negative log-likelihood is ``-sum scipy.stats.norm.logpdf(d_hat; d, d^2 / sqrt(A))``;
 * the MLE is found by :func:`scipy.optimize.minimize` (BFGS) on an objective written in the
   test (the ``ref`` fixture's Gaussian log-likelihood, built from the raw radar numbers),
@@ -72,7 +72,7 @@ def nll_scipy_stats(target_xy, uav_xy, d_hat, altitude, a=A_PAPER):
 
 
 def test_reference_constant_matches_paper_notes():
-    """Guard of the reference itself: A is about 1.3463e8 m^4 (the paper profile of docs/sensing-model.md)."""
+    """Guard of the reference itself: A is about 1.3463e8 m^4 (docs/sensing-model.md)."""
     assert abs(A_PAPER / 1.3463e8 - 1.0) < 1e-4
 
 

@@ -94,9 +94,7 @@ def test_fstar_mse_reaches_the_crlb(fstar_20m, ref):
     assert res.n_trials == 20_000
     assert res.n_failed == 0
     assert res.crlb == pytest.approx(reference_crlb(ref, q, TARGET, 20.0), rel=1e-9)
-    assert res.crlb == pytest.approx(
-        5.3476e-3, rel=1e-4
-    )  # the paper profile of docs/sensing-model.md
+    assert res.crlb == pytest.approx(5.3476e-3, rel=1e-4)  # docs/sensing-model.md
     assert 0.9 <= res.ratio <= 1.1
     half = 0.5 * (res.ratio_ci[1] - res.ratio_ci[0])
     assert abs(res.ratio - 1.0) <= half * norm.isf(ALPHA / 2) / Z95

@@ -1,10 +1,10 @@
 """Mission scenarios (crlbswarm.scenario): the paper scenario, validation, TOML round trip.
 
-The paper scenario is checked field by field against the paper scenario of docs/scenarios.md and the profile of
-tests/conftest.py; its formation F* against the reference optimal elevation (a root of
-dw/dphi found numerically in conftest). Every invalid input listed in the issue must raise
-:class:`ScenarioError` (a ValueError) with one line that starts with the source's name and
-names the field, whether it arrives as a dictionary or as TOML text.
+The paper scenario is checked field by field against the paper scenario of docs/scenarios.md
+and the profile of tests/conftest.py; its formation F* against the reference optimal
+elevation (a root of dw/dphi found numerically in conftest). Every invalid input listed in
+the issue must raise :class:`ScenarioError` (a ValueError) with one line that starts with
+the source's name and names the field, whether it arrives as a dictionary or as TOML text.
 """
 
 from __future__ import annotations
