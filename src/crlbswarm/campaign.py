@@ -350,13 +350,37 @@ def run_campaign(
     dict
         ``variants``, ``tasks``, ``skipped`` (already finished) and ``ran`` task counts.
     """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-    from dask.distributed import Client, LocalCluster, as_completed
-
     folder = Path(out)
     scenarios, tasks = plan_tasks(spec)  # validate everything before anything runs
     variants = spec.variants()
+    schema, digest = _prepare_folder(spec, folder, variants, spec_text)
+    todo = [t for t in tasks if not _part_path(folder, *t).exists()]
+
+    def report(done: int) -> None:
+        if progress is not None:
+            progress(done, len(tasks))
+
+    finished = len(tasks) - len(todo)
+    report(finished)
+    if todo:
+        _run_tasks(spec, folder, scenarios, variants, todo, schema, digest, scheduler,
+                   n_workers, report, finished)  # fmt: skip
+    return {
+        "variants": len(variants),
+        "tasks": len(tasks),
+        "skipped": len(tasks) - len(todo),
+        "ran": len(todo),
+    }
+
+
+def _prepare_folder(
+    spec: CampaignSpec, folder: Path, variants: list[dict[str, Any]], spec_text: str | None
+) -> tuple[Any, str]:
+    """Check that ``folder`` is new or holds this campaign, write its spec and variants
+    table, remove stale temporaries; return the variants' Arrow schema and the spec digest."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     rows: dict[str, list[Any]] = {"variant": list(range(len(variants)))}
     for name in sorted({k for v in variants for k in v}):
         rows[name] = [v.get(name) for v in variants]
@@ -370,7 +394,6 @@ def run_campaign(
         {"spec": spec.model_dump(), "base": spec.base_dict(), "crlbswarm": __version__},
         sort_keys=True,
     )
-    digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]
     marker = folder / "spec.json"
     if marker.exists() and marker.read_text(encoding="utf-8") != canonical:
         raise FieldError(
@@ -384,65 +407,63 @@ def run_campaign(
         write_text(folder / "spec.toml", spec_text)
     with atomic_path(folder / "variants.parquet") as tmp:
         pq.write_table(table, tmp)
-
     # Temporaries of tasks interrupted while being written (hidden files, which Parquet
     # readers skip) are stale: remove them.
     for stale in [*folder.glob("runs/*/.part-*"), *folder.glob("trajectories/*/.part-*")]:
         stale.unlink(missing_ok=True)
-    todo = [t for t in tasks if not _part_path(folder, *t).exists()]
-    done = len(tasks) - len(todo)
-    if progress is not None:
-        progress(done, len(tasks))
-    if todo:
-        cluster = None
-        if scheduler is None:
-            cluster = LocalCluster(
-                n_workers=n_workers, threads_per_worker=1, processes=True,
-                dashboard_address=":0",  # any free port: never clash with another cluster
-                silence_logs=logging.CRITICAL,  # failures are reported once, by this process
-            )  # fmt: skip
-        try:
-            with Client(scheduler or cluster) as client:
-                # Deterministic failures are not retried (they would fail again); a task whose
-                # worker dies is rescheduled by Dask (distributed.scheduler.allowed-failures).
-                futures = {
-                    client.submit(
-                        run_task, scenarios[v], v, a, b, spec.trajectories,
-                        key=f"crlbswarm-{digest}-{v}-{a}-{b}", retries=0, pure=False,
-                    ): (v, a, b)
-                    for v, a, b in todo
-                }  # fmt: skip
-                for future in as_completed(futures):
-                    v, a, b = futures.pop(future)
-                    try:
-                        result = future.result()
-                    except (ValueError, RuntimeError) as exc:
-                        raise CampaignError(
-                            f"variant {v} ({_label(variants[v])}), seeds {a}..{b}: {exc}"
-                        ) from None
-                    except Exception as exc:  # e.g. distributed.KilledWorker
-                        raise CampaignError(
-                            f"variant {v}, seeds {a}..{b}: {type(exc).__name__}: {exc}"
-                        ) from None
-                    future.release()  # do not keep finished results on the workers
-                    path = _part_path(folder, v, a, b)
-                    # The Parquet part is written last: its presence marks the task done.
-                    if spec.trajectories:
-                        npz = folder / "trajectories" / path.parent.name / f"{path.stem}.npz"
-                        npz.parent.mkdir(parents=True, exist_ok=True)
-                        with atomic_path(npz) as tmp:
-                            np.savez(tmp, positions=result["positions"])
-                    _write_part(path, result["columns"], variants[v], table.schema)
-                    del result
-                    done += 1
-                    if progress is not None:
-                        progress(done, len(tasks))
-        finally:
-            if cluster is not None:
-                cluster.close()
-    return {
-        "variants": len(variants),
-        "tasks": len(tasks),
-        "skipped": len(tasks) - len(todo),
-        "ran": len(todo),
-    }
+    return table.schema, hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+
+def _run_tasks(spec: CampaignSpec, folder: Path, scenarios: list[dict[str, Any]],
+               variants: list[dict[str, Any]], todo: list[tuple[int, int, int]], schema: Any,
+               digest: str, scheduler: str | None, n_workers: int | None,
+               progress: Callable[[int], None], done: int) -> None:  # fmt: skip
+    """Run the unfinished tasks on Dask and write each one's files as it finishes; report
+    the count of finished tasks (``done`` before the first) to ``progress``."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(
+            n_workers=n_workers, threads_per_worker=1, processes=True,
+            dashboard_address=":0",  # any free port: never clash with another cluster
+            silence_logs=logging.CRITICAL,  # failures are reported once, by this process
+        )  # fmt: skip
+    try:
+        with Client(scheduler or cluster) as client:
+            # Deterministic failures are not retried (they would fail again); a task whose
+            # worker dies is rescheduled by Dask (distributed.scheduler.allowed-failures).
+            futures = {
+                client.submit(
+                    run_task, scenarios[v], v, a, b, spec.trajectories,
+                    key=f"crlbswarm-{digest}-{v}-{a}-{b}", retries=0, pure=False,
+                ): (v, a, b)
+                for v, a, b in todo
+            }  # fmt: skip
+            for future in as_completed(futures):
+                v, a, b = futures.pop(future)
+                try:
+                    result = future.result()
+                except (ValueError, RuntimeError) as exc:
+                    raise CampaignError(
+                        f"variant {v} ({_label(variants[v])}), seeds {a}..{b}: {exc}"
+                    ) from None
+                except Exception as exc:  # e.g. distributed.KilledWorker
+                    raise CampaignError(
+                        f"variant {v}, seeds {a}..{b}: {type(exc).__name__}: {exc}"
+                    ) from None
+                future.release()  # do not keep finished results on the workers
+                path = _part_path(folder, v, a, b)
+                # The Parquet part is written last: its presence marks the task done.
+                if spec.trajectories:
+                    npz = folder / "trajectories" / path.parent.name / f"{path.stem}.npz"
+                    npz.parent.mkdir(parents=True, exist_ok=True)
+                    with atomic_path(npz) as tmp:
+                        np.savez(tmp, positions=result["positions"])
+                _write_part(path, result["columns"], variants[v], schema)
+                del result
+                done += 1
+                progress(done)
+    finally:
+        if cluster is not None:
+            cluster.close()
