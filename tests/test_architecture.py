@@ -47,8 +47,8 @@ def test_import_loads_no_heavy_library():
 )  # fmt: skip
 def test_cli_help_version_and_input_errors_load_no_heavy_library(argv):
     code = (
-        "import contextlib, io\nfrom crlbswarm.cli import main\n"
-        "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+        "import contextlib, io\nfrom crlbswarm.cli import main\nquiet = io.StringIO()\n"
+        "with contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):\n"
         "    try:\n"
         f"        main({argv!r})\n"
         "    except SystemExit:\n"
@@ -141,8 +141,8 @@ def test_radar_docstring_and_from_db_are_derived_from_the_declarations():
 
 def test_every_radar_field_has_its_cli_options():
     parser = build_parser()
-    design = parser._subparsers._group_actions[0].choices["design"]  # noqa: SLF001
-    options = {s for a in design._actions for s in a.option_strings}  # noqa: SLF001
+    design = parser._subparsers._group_actions[0].choices["design"]
+    options = {s for a in design._actions for s in a.option_strings}
     for p in radar_parameters():
         assert f"--{p.name.replace('_', '-')}" in options
         if p.db_unit:

@@ -46,7 +46,7 @@ def test_the_cli_folder_reads_back_to_the_library_result(tmp_path):
 
 
 def test_loading_an_incomplete_folder_names_the_missing_file(tmp_path):
-    with pytest.raises(FieldError, match="trajectories.npz missing") as info:
+    with pytest.raises(FieldError, match=r"trajectories\.npz missing") as info:
         load_results(tmp_path)
     assert info.value.field == "folder"
 
