@@ -52,6 +52,7 @@ from pydantic import Field
 from . import _validation as _v
 from ._config import ConfigModel
 from .errors import FieldError
+from .geometry import clip_norm
 from .graphs import Adjacency
 from .obstacles import Obstacles, check_obstacles, clearance_at, repulsion_at
 
@@ -278,11 +279,7 @@ def reference_velocity(
         rx, ry = repulsion_at(cx, cy, rects, circles, e_r, l_safe, math.inf, footprint)
         wx += rx / dt
         wy += ry / dt
-    speed = math.sqrt(wx * wx + wy * wy)
-    if speed > cruise:
-        wx *= cruise / speed
-        wy *= cruise / speed
-    return wx, wy
+    return clip_norm(wx, wy, cruise)
 
 
 @njit(cache=True)

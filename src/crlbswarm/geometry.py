@@ -8,12 +8,26 @@ target is the ground point :math:`\mathbf s`. Every function takes positions of 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from . import _validation as _v
 from .errors import FieldError
 
-__all__ = ["azimuth_angles", "elevation_angles", "regular_polygon", "slant_ranges"]
+__all__ = ["azimuth_angles", "clip_norm", "elevation_angles", "regular_polygon", "slant_ranges"]
+
+
+@njit(cache=True, inline="always")
+def clip_norm(x, y, limit):
+    """The vector (x, y), scaled down to length ``limit`` if it is longer: the saturation of
+    the leader's speed and the cap on the repulsive step. Compiled kernel, no checks."""
+    norm = math.sqrt(x * x + y * y)
+    if norm > limit:
+        x *= limit / norm
+        y *= limit / norm
+    return x, y
 
 
 def check_scene(

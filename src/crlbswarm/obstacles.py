@@ -26,6 +26,7 @@ from numba import njit
 
 from . import _validation as _v
 from .errors import FieldError
+from .geometry import clip_norm
 
 __all__ = [
     "Obstacles",
@@ -187,11 +188,7 @@ def repulsion_at(x, y, rects, circles, gain, l_safe, max_step, inflate=0.0):
             mag = gain * (1.0 / ell - 1.0 / l_safe) / (ell * ell)
             fx += mag * ux
             fy += mag * uy
-    norm = math.sqrt(fx * fx + fy * fy)
-    if norm > max_step:
-        fx *= max_step / norm
-        fy *= max_step / norm
-    return fx, fy
+    return clip_norm(fx, fy, max_step)
 
 
 @njit(cache=True)
