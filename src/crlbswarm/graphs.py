@@ -67,7 +67,7 @@ class Adjacency:
     ----------
     indptr : ndarray of int64, shape (M + 1,)
         CSR row pointers.
-    indices : ndarray of int64, shape (2 |E|,)
+    indices : ndarray of int64, shape (2 \\|E\\|,)
         Neighbour indices, sorted within each row.
     """
 
@@ -113,7 +113,7 @@ class Adjacency:
 
     @property
     def edges(self) -> np.ndarray:
-        """Undirected edges ``(m, p)`` with ``m < p``, shape (|E|, 2)."""
+        """Undirected edges ``(m, p)`` with ``m < p``, shape (\\|E\\|, 2)."""
         rows = np.repeat(np.arange(self.n_nodes), self.degrees)
         keep = rows < self.indices
         return np.stack([rows[keep], self.indices[keep]], axis=-1)
@@ -243,7 +243,7 @@ def _largest_eigenvalue(matrix: sp.csr_array) -> float:
 def formation_step_limit(adjacency: Adjacency) -> float:
     r"""Largest stable formation gain, :math:`2/\lambda_{\max}(L)`.
 
-    For more than :data:`EXACT_EIGEN_MAX_NODES` UAVs :math:`\lambda_{\max}(L)` is replaced
+    For more than ``EXACT_EIGEN_MAX_NODES`` UAVs :math:`\lambda_{\max}(L)` is replaced
     by its Gershgorin bound :math:`2\Delta` (exact for a ring or any bipartite regular
     graph), so the limit :math:`1/\Delta` is sufficient, computed in O(M).
 
@@ -256,7 +256,7 @@ def formation_step_limit(adjacency: Adjacency) -> float:
     -------
     float
         The formation law converges if :math:`\varepsilon` is below this value (iff, for
-        graphs of up to :data:`EXACT_EIGEN_MAX_NODES` UAVs).
+        graphs of up to ``EXACT_EIGEN_MAX_NODES`` UAVs).
     """
     return 2.0 / _largest_eigenvalue(adjacency.laplacian())
 
@@ -275,7 +275,7 @@ def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:
     -------
     float
         The leader-follower consensus converges if :math:`\gamma` is below this value (iff,
-        for graphs of up to :data:`EXACT_EIGEN_MAX_NODES` UAVs; above, the Gershgorin bound
+        for graphs of up to ``EXACT_EIGEN_MAX_NODES`` UAVs; above, the Gershgorin bound
         is used as in :func:`formation_step_limit`). Scenarios require the stricter
         :math:`\gamma < 1/\Delta` (``docs/control.md``), under which no velocity overshoots.
     """

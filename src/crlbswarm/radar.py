@@ -152,7 +152,7 @@ class RadarParameter:
         Parameters
         ----------
         value : float or array_like
-            Value in :attr:`db_unit`.
+            Value in ``db_unit``.
 
         Returns
         -------

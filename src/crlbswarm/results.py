@@ -35,6 +35,7 @@ __all__ = [
 
 #: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
 CRLB_TOL = 0.01
+#: Convergence: the centroid within this distance of the target, m.
 CENTROID_TOL = 0.5
 
 #: Length of the "steady state" window at the end of a mission (estimation metrics), s.

@@ -16,8 +16,8 @@ follows :data:`crlbswarm.GRAPH_KINDS`. Validation happens when the scenario is b
 anything runs: field by field (unknown or missing fields, wrong types, fewer than 3 UAVs),
 then the scene as a whole (:func:`crlbswarm.scenario_checks.check_scene`: a disconnected
 graph, a start or target inside an obstacle, gains beyond the stability bounds, ...). Any
-failure raises :class:`ScenarioError` (a :class:`ValueError`) whose one-line message names
-the dotted field.
+failure raises :class:`crlbswarm.ScenarioError` (a :class:`ValueError`) whose one-line
+message names the dotted field.
 """
 
 from __future__ import annotations

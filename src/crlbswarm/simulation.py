@@ -288,8 +288,9 @@ def simulate(
     Raises
     ------
     SimulationDivergedError
-        If a run produces NaN or positions beyond :data:`DIVERGENCE_LIMIT`, naming the run,
-        its seed and the step.
+        If a run produces NaN or positions beyond
+        :data:`crlbswarm.mission_kernel.DIVERGENCE_LIMIT`, naming the run, its seed and the
+        step.
     """
     if not isinstance(scenario, Scenario):
         raise FieldError(
