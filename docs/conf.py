@@ -19,7 +19,6 @@ import inspect
 import re
 import sys
 import types
-import typing
 from pathlib import Path
 
 from docutils import nodes
@@ -126,52 +125,6 @@ def _skip_generated_members(app, what, name, obj, skip, options):
     ):
         return True
     return None
-
-
-def _type_text(annotation: object) -> str:
-    """A numpydoc type for a pydantic field annotation: ``list of float or None``."""
-    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if origin is typing.Annotated:
-        return _type_text(args[0])
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_text(a) for a in args)
-    if origin is typing.Literal:
-        return "{" + ", ".join(repr(a) for a in args) + "}"
-    if origin in (list, tuple) and args:
-        return f"{origin.__name__} of {_type_text(args[0])}"
-    if annotation is type(None):
-        return "None"
-    return getattr(annotation, "__name__", str(annotation))
-
-
-def _rst_escape(text: str) -> str:
-    for char in "\\*`|_":
-        text = text.replace(char, "\\" + char)
-    return text
-
-
-def _field_parameters(app, what, name, obj, options, lines):
-    """Give a pydantic model without a Parameters section one, from its field declarations
-    (type, default, ``description``); the models that have one keep theirs."""
-    from pydantic import BaseModel
-    from pydantic_core import PydanticUndefined
-
-    if what != "class" or not (inspect.isclass(obj) and issubclass(obj, BaseModel)):
-        return
-    if any(line.strip() == "Parameters" for line in lines) or not obj.model_fields:
-        return
-    if not "".join(lines).strip():  # a model made by create_model: its base's docstring
-        lines[:] = (inspect.getdoc(obj) or "").splitlines()
-    block = ["", "Parameters", "----------"]
-    for field_name, info in obj.model_fields.items():
-        kind = _type_text(info.annotation)
-        if info.default is not PydanticUndefined and not isinstance(info.default, BaseModel):
-            kind += f", default {info.default!r}"
-        elif not info.is_required():
-            kind += ", optional"
-        block.append(f"{field_name} : {kind}")
-        block.append(f"    {_rst_escape(info.description or '')}".rstrip())
-    lines.extend(block)
 
 
 def _resolve_package_names(app, env, node, contnode):
@@ -305,7 +258,6 @@ class LinksOutOfDocs(SphinxPostTransform):
 def setup(app):
     app.add_directive("crlbswarm-package-names", PackageNames)
     app.connect("autodoc-skip-member", _skip_generated_members)
-    app.connect("autodoc-process-docstring", _field_parameters, priority=400)  # before numpydoc
     app.connect("missing-reference", _resolve_package_names)
     app.connect("doctree-read", _github_slugs_of_math_headings)
     app.add_post_transform(LinksOutOfDocs)

@@ -10,7 +10,10 @@ field's description.
 
 from __future__ import annotations
 
+import re
 import sys
+import types
+import typing
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -29,9 +32,20 @@ Model = TypeVar("Model", bound=BaseModel)
 
 
 class ConfigModel(BaseModel):
-    """Base of every configuration model: frozen, strict types, unknown keys refused."""
+    """Base of every configuration model: frozen, strict types, unknown keys refused.
+
+    A subclass declares each field once (type, default and a ``description`` with its unit);
+    its docstring's numpydoc ``Parameters`` section is generated from those declarations,
+    like the comments of its TOML form (:func:`model_to_toml`).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    @classmethod
+    def __pydantic_init_subclass__(cls, **kwargs: Any) -> None:
+        super().__pydantic_init_subclass__(**kwargs)
+        if cls.model_fields and "\n    Parameters\n" not in (cls.__doc__ or ""):
+            cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n\n" + _parameters_section(cls)
 
 
 def read_toml(text: str, source: str, error: type[ConfigError] = ConfigError) -> dict[str, Any]:
@@ -162,6 +176,43 @@ def describe(exc: ValidationError) -> list[tuple[str, str]]:
             msg = f"{msg} (got {err['input']!r})"
         out.append((".".join(loc), msg))
     return out
+
+
+def _parameters_section(model: type[BaseModel]) -> str:
+    """The numpydoc ``Parameters`` section of a model, from its field declarations."""
+    from pydantic_core import PydanticUndefined
+
+    lines = ["    Parameters", "    ----------"]
+    for name, info in model.model_fields.items():
+        kind = _type_text(info.annotation)
+        if info.default is not PydanticUndefined and not isinstance(info.default, BaseModel):
+            kind += f", default {info.default!r}"
+        elif not info.is_required():
+            kind += ", optional"
+        lines.append(f"    {name} : {kind}")
+        description = info.description or ""
+        for char in "\\*`|_":
+            description = description.replace(char, "\\" + char)
+        if re.match(r"[a-z]+[ ,]", description):  # a sentence, not a field or code name
+            description = description[0].upper() + description[1:]
+        lines.append(f"        {description}" + ("" if description.endswith(".") else "."))
+    return "\n".join(lines) + "\n"
+
+
+def _type_text(annotation: object) -> str:
+    """A numpydoc type for a field annotation: ``list of float or None``."""
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return _type_text(args[0])
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_type_text(a) for a in args)
+    if origin is typing.Literal:
+        return "{" + ", ".join(repr(a) for a in args) + "}"
+    if origin in (list, tuple) and args:
+        return f"{origin.__name__} of {_type_text(args[0])}"
+    if annotation is type(None):
+        return "None"
+    return getattr(annotation, "__name__", str(annotation))
 
 
 #: Tags of the tagged unions of the scenario schema (obstacle types).

@@ -51,15 +51,19 @@ __all__ = ["CampaignError", "CampaignSpec", "plan_tasks", "run_campaign", "run_t
 class SeedRange(ConfigModel):
     """Seeds ``start, start + 1, ..., start + count - 1`` for every variant."""
 
-    start: Annotated[int, Field(ge=0)] = 0
-    count: Annotated[int, Field(ge=1)]
+    start: Annotated[int, Field(ge=0)] = Field(0, description="first seed")
+    count: Annotated[int, Field(ge=1)] = Field(description="number of seeds per variant")
 
 
 class Distribution(ConfigModel):
     """A random field value: ``uniform = [low, high]`` or ``choice = [a, b, ...]``."""
 
-    uniform: Annotated[list[float], Field(min_length=2, max_length=2)] | None = None
-    choice: Annotated[list[Any], Field(min_length=1)] | None = None
+    uniform: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[low, high]: drawn uniformly"
+    )
+    choice: Annotated[list[Any], Field(min_length=1)] | None = Field(
+        None, description="values, one drawn with equal probabilities"
+    )
 
     @model_validator(mode="after")
     def _one(self) -> Distribution:
@@ -71,36 +75,36 @@ class Distribution(ConfigModel):
 class RandomSample(ConfigModel):
     """``samples`` variants with each field drawn from its distribution (seeded)."""
 
-    samples: Annotated[int, Field(ge=1)]
-    seed: Annotated[int, Field(ge=0)] = 0
-    fields: dict[str, Distribution]
+    samples: Annotated[int, Field(ge=1)] = Field(description="number of variants")
+    seed: Annotated[int, Field(ge=0)] = Field(0, description="seed of the draws")
+    fields: dict[str, Distribution] = Field(
+        description="dotted scenario field -> its distribution"
+    )
 
 
 class CampaignSpec(ConfigModel):
     """A campaign: base scenario, variants (grid or random) and seeds.
 
-    Parameters
-    ----------
-    base : str
-        Built-in scenario name or path of a scenario TOML file.
-    seeds : SeedRange
-        Seeds of every variant.
-    grid : dict of str to list, optional
-        Dotted scenario fields and their values; the variants are their cartesian product.
-    random : RandomSample, optional
-        Instead of ``grid``: a seeded random sample of variants.
-    batch_size : int, default 250
-        Runs per task (one variant, consecutive seeds).
-    trajectories : bool, default False
-        Also save each task's trajectories (``.npz`` beside its Parquet file).
+    Each field is declared once below; this docstring's Parameters section is generated
+    from the declarations.
     """
 
-    base: str
-    seeds: SeedRange
-    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] | None = None
-    random: RandomSample | None = None
-    batch_size: Annotated[int, Field(ge=1)] = 250
-    trajectories: bool = False
+    base: str = Field(description="built-in scenario name or path of a scenario TOML file")
+    seeds: SeedRange = Field(description="seeds of every variant")
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] | None = Field(
+        None,
+        description="dotted scenario fields and their values; the variants are their "
+        "cartesian product",
+    )
+    random: RandomSample | None = Field(
+        None, description="instead of grid: a seeded random sample of variants"
+    )
+    batch_size: Annotated[int, Field(ge=1)] = Field(
+        250, description="runs per task (one variant, consecutive seeds)"
+    )
+    trajectories: bool = Field(
+        False, description="also save each task's trajectories (.npz beside its Parquet file)"
+    )
 
     @model_validator(mode="after")
     def _variants(self) -> CampaignSpec:

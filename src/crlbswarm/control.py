@@ -86,35 +86,23 @@ class ControlGains(ConfigModel):
 
     The scenario's ``[control]`` table; the public laws take it, and the mission kernel
     receives it as :meth:`kernel_tuple`. Frozen; invalid values raise a pydantic
-    ``ValidationError`` (a :class:`ValueError`) naming the field.
-
-    Parameters
-    ----------
-    epsilon : float, default 0.01
-        Formation gain :math:`\\varepsilon` per step, eq. (19) (paper: 0.01).
-    gamma : float, default 0.25
-        Consensus step :math:`\\gamma`, eq. (14) (< 1/max degree; ring: < 0.5).
-    guidance_gain : float, default 0.5
-        Leader guidance gain :math:`k_g`, 1/s.
-    cruise_speed : float, default 2
-        Leader cruise speed :math:`v_c`, m/s.
-    safety_radius : float, default 5
-        :math:`l_\\text{safe}` of eq. (18), m (paper: 5).
-    repulsion_gain : float, default 2
-        :math:`E_r` of eq. (18), m^4 per step (so that :math:`\\mathbf u^r` is in metres).
-    repulsion_max_step : float, default 1
-        Cap on :math:`\\lVert\\mathbf u^r\\rVert` per step, m.
-    formation_steering : bool, default True
-        The leader also steers the formation (a disc of radius :math:`\\eta r^*`) off
-        obstacles.
+    ``ValidationError`` (a :class:`ValueError`) naming the field. Each field is declared
+    once below, with its unit; this docstring's Parameters section and the comments of the
+    scenario file are generated from those declarations.
     """
 
-    epsilon: PositiveFloat = Field(0.01, description="formation gain per step (paper: 0.01)")
-    gamma: PositiveFloat = Field(0.25, description="consensus step (< 1/max degree; ring: < 0.5)")
+    epsilon: PositiveFloat = Field(
+        0.01, description="formation gain epsilon per step, eqs. (16), (19) (paper: 0.01)"
+    )
+    gamma: PositiveFloat = Field(
+        0.25, description="consensus step gamma, eq. (14) (< 1/max degree; ring: < 0.5)"
+    )
     guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
     cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
-    safety_radius: PositiveFloat = Field(5.0, description="l_safe, m (paper: 5)")
-    repulsion_gain: PositiveFloat = Field(2.0, description="E_r, m^4 per step (u^r is in metres)")
+    safety_radius: PositiveFloat = Field(5.0, description="l_safe of eq. (18), m (paper: 5)")
+    repulsion_gain: PositiveFloat = Field(
+        2.0, description="E_r of eq. (18), m^4 per step (u^r is in metres)"
+    )
     repulsion_max_step: PositiveFloat = Field(1.0, description="cap on |u^r| per step, m")
     formation_steering: bool = Field(
         True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
@@ -135,22 +123,8 @@ class EtaRule(ConfigModel):
     """Rule for the scaling factor :math:`\\eta` (not in the paper; :func:`eta_target`).
 
     The scenario's ``[eta]`` table; :func:`eta_target` and :func:`eta_update` take it, and
-    the mission kernel receives it as :meth:`kernel_tuple`.
-
-    Parameters
-    ----------
-    enabled : bool, default True
-        False keeps :math:`\\eta = 1`.
-    minimum : float, default 0.3
-        Smallest :math:`\\eta`, in (0, 1].
-    rate : float, default 0.1
-        Largest change of :math:`\\eta` per second, 1/s.
-    lookahead : float, default 40
-        Distance looked ahead along the path, m.
-    margin : float, optional
-        Clearance to keep, m (default: the gains' ``safety_radius``).
-    samples : int, default 32
-        Points sampled on the path (at least 2).
+    the mission kernel receives it as :meth:`kernel_tuple`. Each field is declared once
+    below, with its unit; this docstring's Parameters section is generated from them.
     """
 
     enabled: bool = Field(True, description="false keeps eta = 1")

@@ -139,6 +139,7 @@ else:
         "RadarConfig",
         __base__=_RadarTable,
         __module__=__name__,
+        __doc__=_RadarTable.__doc__,
         **{
             p.name: (
                 PositiveFloat,
@@ -293,52 +294,29 @@ class TargetMotionConfig(ConfigModel):
 class Scenario(ConfigModel):
     """A complete mission scenario (see the module docstring and docs/scenarios.md).
 
-    Parameters
-    ----------
-    name : str
-        Short name.
-    description : str
-        One line of text.
-    altitude : float
-        Common flight altitude H, m.
-    target : [float, float]
-        Target position s, m.
-    uavs : UavsConfig
-        Count, leader, start.
-    time : TimeConfig
-        Step and duration.
-    radar : RadarConfig
-        Radar (paper profile by default).
-    control : ControlGains
-        Gains of the control laws.
-    disturbance : DisturbanceConfig
-        Motion noise.
-    graph : GraphConfig
-        Communication graph.
-    obstacles : list of RectangleObstacle or CircleObstacle
-        Obstacles.
-    eta : EtaRule
-        Scaling-factor rule.
-    estimation : EstimationConfig
-        Sensing in the loop (off by default: the formation knows the target).
-    target_motion : TargetMotionConfig
-        Motion of the target (static by default).
+    Each table of the scenario file is a field below, declared once with its meaning; this
+    docstring's Parameters section is generated from the declarations.
     """
 
     name: str = Field("custom", description="short name")
     description: str = Field("", description="one line of text")
     altitude: PositiveFloat = Field(description="common flight altitude H, m")
     target: Pair = Field(description="target position s = [x, y], m")
-    uavs: UavsConfig
-    time: TimeConfig
-    radar: RadarConfig = RadarConfig()
-    control: ControlGains = ControlGains()
-    disturbance: DisturbanceConfig = DisturbanceConfig()
-    graph: GraphConfig = GraphConfig()
-    obstacles: list[Obstacle] = Field(default_factory=list)
-    eta: EtaRule = EtaRule()
-    estimation: EstimationConfig = EstimationConfig()
-    target_motion: TargetMotionConfig = TargetMotionConfig()
+    uavs: UavsConfig = Field(description="count, leader and start of the UAVs")
+    time: TimeConfig = Field(description="step and duration")
+    radar: RadarConfig = Field(RadarConfig(), description="radar (paper profile by default)")
+    control: ControlGains = Field(ControlGains(), description="gains of the control laws")
+    disturbance: DisturbanceConfig = Field(DisturbanceConfig(), description="motion noise")
+    graph: GraphConfig = Field(GraphConfig(), description="communication graph")
+    obstacles: list[Obstacle] = Field(default_factory=list, description="obstacles")
+    eta: EtaRule = Field(EtaRule(), description="rule for the scaling factor eta")
+    estimation: EstimationConfig = Field(
+        EstimationConfig(),
+        description="sensing in the loop (off by default: the formation knows the target)",
+    )
+    target_motion: TargetMotionConfig = Field(
+        TargetMotionConfig(), description="motion of the target (static by default)"
+    )
 
     @model_validator(mode="after")
     def _check_scene(self) -> Scenario:
