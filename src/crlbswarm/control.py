@@ -47,6 +47,7 @@ from typing import Annotated, Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 from pydantic import Field
 
 from . import _validation as _v
@@ -380,7 +381,7 @@ def _flat(arr: np.ndarray, batch: tuple[int, ...], tail: tuple[int, ...]) -> np.
     return np.ascontiguousarray(np.broadcast_to(arr, (*batch, *tail))).reshape(-1, *tail)
 
 
-def _formation_arrays(q: object, name: str, adjacency: Adjacency) -> np.ndarray:
+def _formation_arrays(q: ArrayLike, name: str, adjacency: Adjacency) -> np.ndarray:
     if not isinstance(adjacency, Adjacency):
         raise FieldError(
             "adjacency", f"expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
@@ -393,14 +394,14 @@ def _formation_arrays(q: object, name: str, adjacency: Adjacency) -> np.ndarray:
     return arr
 
 
-def _slot_offsets(delta: object, adjacency: Adjacency) -> np.ndarray:
+def _slot_offsets(delta: ArrayLike, adjacency: Adjacency) -> np.ndarray:
     d = _formation_arrays(delta, "delta", adjacency)
     if d.ndim != 2:
         raise FieldError("delta", f"expected shape (M, 2), got {d.shape}")
     return np.ascontiguousarray(d)
 
 
-def _scale(eta: object, name: str) -> np.ndarray:
+def _scale(eta: ArrayLike, name: str) -> np.ndarray:
     e = _v.finite(eta, name)
     if np.any((e <= 0) | (e > 1)):
         raise FieldError(name, f"must lie in (0, 1], got {eta!r}")
@@ -415,8 +416,8 @@ def _check_leader(leader: int, n: int) -> int:
 
 
 def consensus_step(
-    velocities: object,
-    v_ref: object,
+    velocities: ArrayLike,
+    v_ref: ArrayLike,
     adjacency: Adjacency,
     leader: int,
     gains: ControlGains = _DEFAULT_GAINS,
@@ -452,22 +453,22 @@ def consensus_step(
     v = _formation_arrays(velocities, "velocities", adjacency)
     ref = _v.point(v_ref, "v_ref")
     lead = _check_leader(leader, adjacency.n_nodes)
-    g = _check_gains(gains).gamma
+    gamma = _check_gains(gains).gamma
     shape = _v.broadcast("v_ref", v.shape[:-2], ref.shape[:-1])
     vb = _flat(v, shape, v.shape[-2:])
     rb = _flat(ref, shape, (2,))
     out = np.empty_like(vb)
-    _consensus_batch(vb, rb, lead, adjacency.indptr, adjacency.indices, g, out)
+    _consensus_batch(vb, rb, lead, adjacency.indptr, adjacency.indices, gamma, out)
     return out.reshape(*shape, *v.shape[-2:])
 
 
 def leader_guidance(
-    leader_xy: object,
-    goal_xy: object,
+    leader_xy: ArrayLike,
+    goal_xy: ArrayLike,
     gains: ControlGains = _DEFAULT_GAINS,
     *,
-    center_xy: object = None,
-    goal_velocity: object = (0.0, 0.0),
+    center_xy: ArrayLike | None = None,
+    goal_velocity: ArrayLike = (0.0, 0.0),
     footprint: float = 0.0,
     obstacles: Obstacles | None = None,
     dt: float = 0.1,
@@ -519,7 +520,7 @@ def leader_guidance(
     """
     q = _v.point(leader_xy, "leader_xy")
     goal = _v.point(goal_xy, "goal_xy")
-    g = _check_gains(gains)
+    gains = _check_gains(gains)
     rho = float(_v.finite(footprint, "footprint"))
     if rho < 0:
         raise FieldError("footprint", f"must be >= 0, got {footprint!r}")
@@ -535,17 +536,18 @@ def leader_guidance(
     out = np.empty((int(np.prod(shape[:-1], dtype=int)), 2))
     _reference_batch(
         _flat(q, shape[:-1], (2,)), _flat(goal, shape[:-1], (2,)), _flat(c, shape[:-1], (2,)),
-        _flat(tv, shape[:-1], (2,)), g.guidance_gain, g.cruise_speed, obs.rectangles,
-        obs.circles, g.repulsion_gain, g.safety_radius, rho if g.formation_steering else 0.0,
+        _flat(tv, shape[:-1], (2,)), gains.guidance_gain, gains.cruise_speed, obs.rectangles,
+        obs.circles, gains.repulsion_gain, gains.safety_radius,
+        rho if gains.formation_steering else 0.0,
         step, out,
     )  # fmt: skip
     return out.reshape(shape)
 
 
 def formation_input(
-    positions: object,
-    delta: object,
-    eta: object,
+    positions: ArrayLike,
+    delta: ArrayLike,
+    eta: ArrayLike,
     adjacency: Adjacency,
     gains: ControlGains = _DEFAULT_GAINS,
 ) -> np.ndarray:
@@ -591,7 +593,7 @@ def formation_input(
 
 
 def repulsion(
-    positions: object, obstacles: Obstacles, gains: ControlGains = _DEFAULT_GAINS
+    positions: ArrayLike, obstacles: Obstacles, gains: ControlGains = _DEFAULT_GAINS
 ) -> np.ndarray:
     r"""Repulsive input :math:`\mathbf u^r`, eq. (18), summed over nearby obstacles.
 
@@ -619,20 +621,20 @@ def repulsion(
         Position increment per step, m.
     """
     q = _v.point(positions, "positions")
-    g = _check_gains(gains)
+    gains = _check_gains(gains)
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty_like(qb)
     obs = check_obstacles(obstacles)
     _repulsion_batch(
-        qb, obs.rectangles, obs.circles, g.repulsion_gain, g.safety_radius,
-        g.repulsion_max_step, out,
+        qb, obs.rectangles, obs.circles, gains.repulsion_gain, gains.safety_radius,
+        gains.repulsion_max_step, out,
     )  # fmt: skip
     return out.reshape(q.shape)
 
 
 def eta_target(
-    center_xy: object,
-    target_xy: object,
+    center_xy: ArrayLike,
+    target_xy: ArrayLike,
     obstacles: Obstacles,
     radius: float,
     rule: EtaRule,
@@ -702,7 +704,7 @@ def eta_target(
     return out.reshape(shape[:-1])
 
 
-def eta_update(eta: object, goal: object, rule: EtaRule, dt: float) -> np.ndarray:
+def eta_update(eta: ArrayLike, goal: ArrayLike, rule: EtaRule, dt: float) -> np.ndarray:
     r"""Rate-limited step of :math:`\eta` toward its goal (not in the paper).
 
     :math:`\eta_{k+1} = \eta_k + \operatorname{clip}(\eta^\text{goal}_k - \eta_k,
@@ -726,22 +728,22 @@ def eta_update(eta: object, goal: object, rule: EtaRule, dt: float) -> np.ndarra
         :math:`\eta_{k+1}`.
     """
     e = _scale(eta, "eta")
-    g = _scale(goal, "goal")
+    goal_eta = _scale(goal, "goal")
     rl = _check_rule(rule)
     step = rl.rate * float(_v.positive(dt, "dt"))
-    shape = _v.broadcast("goal", e.shape, g.shape)
+    shape = _v.broadcast("goal", e.shape, goal_eta.shape)
     if not rl.enabled:
         return np.ones(shape)
     out = np.empty(int(np.prod(shape, dtype=int)))
-    _eta_rate_limit_batch(_flat(e, shape, ()), _flat(g, shape, ()), step, out)
+    _eta_rate_limit_batch(_flat(e, shape, ()), _flat(goal_eta, shape, ()), step, out)
     return out.reshape(shape)
 
 
 def formation_cost(
-    positions: object,
-    next_positions: object,
-    delta: object,
-    v_ref: object,
+    positions: ArrayLike,
+    next_positions: ArrayLike,
+    delta: ArrayLike,
+    v_ref: ArrayLike,
     adjacency: Adjacency,
     dt: float,
 ) -> np.ndarray:

@@ -31,6 +31,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -52,7 +53,7 @@ _MIN_UAVS = 3
 
 
 def information_weight(
-    elevation: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+    elevation: ArrayLike, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR
 ) -> np.ndarray:
     r"""Information weight :math:`w_m` of a UAV at elevation :math:`\phi_m`, eq. (9).
 
@@ -87,7 +88,7 @@ def information_weight(
     return (a * r * r + 8.0 * r) * np.cos(phi) ** 2
 
 
-def _tan2_optimal(altitude: object, radar: Radar) -> tuple[np.ndarray, np.ndarray]:
+def _tan2_optimal(altitude: ArrayLike, radar: Radar) -> tuple[np.ndarray, np.ndarray]:
     """``(t*, H)`` with ``t* = tan^2(phi*)`` from the quadratic in the module docstring."""
     h = _v.positive(altitude, "altitude")
     a = radar.snr_constant
@@ -103,7 +104,7 @@ def _tan2_optimal(altitude: object, radar: Radar) -> tuple[np.ndarray, np.ndarra
     return np.where(small, (1.0 + root) / (1.0 + x), (x + root) / (x + 1.0)), h
 
 
-def optimal_elevation(altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+def optimal_elevation(altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
     r"""CRLB-optimal elevation :math:`\phi^*` in closed form, rad (Sec. III).
 
     :math:`\phi^* = \arctan\sqrt{t^*}` with
@@ -135,7 +136,7 @@ def optimal_elevation(altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.nda
     return np.arctan(np.sqrt(t))
 
 
-def optimal_radius(altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+def optimal_radius(altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
     r"""Radius :math:`r^* = H / \tan\phi^*` of the optimal formation, m (Sec. III).
 
     Parameters
@@ -154,7 +155,7 @@ def optimal_radius(altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarra
     return h / np.sqrt(t)
 
 
-def _optimal_weights(n_uavs: object, altitude: object, radar: Radar) -> np.ndarray:
+def _optimal_weights(n_uavs: ArrayLike, altitude: ArrayLike, radar: Radar) -> np.ndarray:
     """Optimal :math:`w^*_m`, shape ``(..., M)`` for altitude of shape ``(...)``."""
     n = _v.count(n_uavs, "n_uavs", _MIN_UAVS)
     if radar.n_uavs is not None and radar.n_uavs != n:
@@ -164,7 +165,7 @@ def _optimal_weights(n_uavs: object, altitude: object, radar: Radar) -> np.ndarr
     return np.broadcast_to(w, (*w.shape[:-1], n))
 
 
-def crlb_bound(n_uavs: int, altitude: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
     r"""Theoretical CRLB bound :math:`4 / \sum_m w_m^*`, eq. (11), m^2.
 
     No formation of ``n_uavs`` UAVs at this altitude has a lower CRLB; :math:`F^*` attains
@@ -196,8 +197,8 @@ def crlb_bound(n_uavs: int, altitude: object, radar: Radar = _DEFAULT_RADAR) -> 
 
 def optimal_formation(
     n_uavs: int,
-    target_xy: object,
-    altitude: object,
+    target_xy: ArrayLike,
+    altitude: ArrayLike,
     radar: Radar = _DEFAULT_RADAR,
     rotation: float = 0.0,
 ) -> np.ndarray:
@@ -264,7 +265,7 @@ def optimal_formation(
 def design_report(
     n_uavs: int,
     altitude: float,
-    target_xy: object = (0.0, 0.0),
+    target_xy: ArrayLike = (0.0, 0.0),
     radar: Radar = _DEFAULT_RADAR,
     rotation_deg: float = 0.0,
 ) -> dict[str, Any]:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import vectorize
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -56,7 +57,7 @@ __all__ = [
 _DEFAULT_RADAR = Radar()
 
 
-def _ranges_array(measured_ranges: object, n_uavs: int) -> np.ndarray:
+def _ranges_array(measured_ranges: ArrayLike, n_uavs: int) -> np.ndarray:
     d = _v.as_float_array(measured_ranges, "measured_ranges")
     if d.ndim < 1 or d.shape[-1] != n_uavs:
         raise FieldError(
@@ -91,9 +92,9 @@ def noisy_range(d2, a, z):
 
 
 def measure_ranges(
-    uav_xy: object,
-    target_xy: object,
-    altitude: object,
+    uav_xy: ArrayLike,
+    target_xy: ArrayLike,
+    altitude: ArrayLike,
     radar: Radar = _DEFAULT_RADAR,
     rng: np.random.Generator | None = None,
 ) -> np.ndarray:
@@ -130,10 +131,10 @@ def measure_ranges(
 
 
 def negative_log_likelihood(
-    target_xy: object,
-    uav_xy: object,
-    measured_ranges: object,
-    altitude: object,
+    target_xy: ArrayLike,
+    uav_xy: ArrayLike,
+    measured_ranges: ArrayLike,
+    altitude: ArrayLike,
     radar: Radar = _DEFAULT_RADAR,
 ) -> np.ndarray:
     r"""Negative log-likelihood :math:`\ell(\mathbf s)` of the ranges, up to a constant.
@@ -169,7 +170,9 @@ def negative_log_likelihood(
         return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
 
 
-def linearised_estimate(uav_xy: object, measured_ranges: object, altitude: object) -> np.ndarray:
+def linearised_estimate(
+    uav_xy: ArrayLike, measured_ranges: ArrayLike, altitude: ArrayLike
+) -> np.ndarray:
     r"""Closed-form linear least-squares estimate: an initialiser that needs no prior.
 
     Squaring the ranges, :math:`\hat d_m^2 - \lVert\mathbf q_m\rVert^2 - H^2 \approx
@@ -368,11 +371,11 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
 
 
 def estimate_target(
-    uav_xy: object,
-    measured_ranges: object,
-    altitude: object,
+    uav_xy: ArrayLike,
+    measured_ranges: ArrayLike,
+    altitude: ArrayLike,
     radar: Radar = _DEFAULT_RADAR,
-    init: object = None,
+    init: ArrayLike | None = None,
     *,
     max_iter: int = 100,
     tol: float = 1e-10,

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_radius
@@ -128,7 +129,7 @@ class ElevationCurve:
 
 
 def formations_over_altitude(
-    altitudes: object,
+    altitudes: ArrayLike,
     n_uavs: int,
     radar: Radar,
     fixed_radius: float,
@@ -195,7 +196,7 @@ def formations_over_altitude(
 
 
 def crlb_vs_altitude(
-    altitudes: object = DEFAULT_ALTITUDES,
+    altitudes: ArrayLike = DEFAULT_ALTITUDES,
     n_uavs: int = 6,
     radar: Radar = _DEFAULT_RADAR,
     *,
@@ -267,7 +268,7 @@ def crlb_vs_altitude(
 
 
 def optimal_elevation_curve(
-    altitudes: object = None, radar: Radar = _DEFAULT_RADAR
+    altitudes: ArrayLike | None = None, radar: Radar = _DEFAULT_RADAR
 ) -> ElevationCurve:
     """Optimal elevation :math:`\\phi^*` and radius :math:`r^*` over altitude (Sec. III).
 

@@ -35,6 +35,7 @@ dominated by rounding error and no finite value would be meaningful.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -58,7 +59,7 @@ SINGULAR_RTOL = 1e-13
 _DEFAULT_RADAR = Radar()
 
 
-def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+def range_information(distance: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
     r"""Fisher information of each range about itself, :math:`[\mathbf J_d]_{mm}`, eq. (6).
 
     .. math:: [\mathbf J_d]_{mm} = \frac{A_m}{d_m^4} + \frac{8}{d_m^2}
@@ -86,7 +87,7 @@ def range_information(distance: object, radar: Radar = _DEFAULT_RADAR) -> np.nda
 
 
 def _fim_entries(
-    uav_xy: object, target_xy: object, altitude: object, radar: Radar
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)."""
     q, s, h = check_scene(uav_xy, target_xy, altitude)
@@ -100,20 +101,20 @@ def _fim_entries(
     d2 = d2 + (h * h)[..., None]  # not in place: the altitude may widen the batch shape
     # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
     # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
-    g = a / d2
-    g += 8.0
-    g /= d2
-    g /= d2
-    gx = g * dx
-    jxx = np.einsum("...m,...m->...", gx, dx)
-    jxy = np.einsum("...m,...m->...", gx, dy)
-    g *= dy
-    jyy = np.einsum("...m,...m->...", g, dy)
+    w = a / d2
+    w += 8.0
+    w /= d2
+    w /= d2
+    wx = w * dx
+    jxx = np.einsum("...m,...m->...", wx, dx)
+    jxy = np.einsum("...m,...m->...", wx, dy)
+    w *= dy
+    jyy = np.einsum("...m,...m->...", w, dy)
     return jxx, jyy, jxy
 
 
 def fisher_information(
-    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR
 ) -> np.ndarray:
     r"""Fisher information matrix of the target position, eqs. (8)-(9).
 
@@ -197,7 +198,7 @@ def _e_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarra
         return np.where(singular, np.inf, lam_max / det)
 
 
-def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _fim_parts(fim: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     j = _v.as_float_array(fim, "fim")
     if j.ndim < 2 or j.shape[-2:] != (2, 2):
         raise FieldError("fim", f"expected shape (..., 2, 2), got {j.shape}")
@@ -212,7 +213,7 @@ def _fim_parts(fim: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return jxx, jyy, jxy
 
 
-def crlb_from_fim(fim: object) -> np.ndarray:
+def crlb_from_fim(fim: ArrayLike) -> np.ndarray:
     r"""A-optimality figure :math:`\operatorname{tr}(\mathbf J^{-1})` of 2x2 FIMs, eq. (10).
 
     Parameters
@@ -228,7 +229,7 @@ def crlb_from_fim(fim: object) -> np.ndarray:
     return _a_criterion(*_fim_parts(fim))
 
 
-def d_optimality_from_fim(fim: object) -> np.ndarray:
+def d_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
     r"""D-optimality figure :math:`\det(\mathbf J^{-1})` of 2x2 FIMs.
 
     Parameters
@@ -244,7 +245,7 @@ def d_optimality_from_fim(fim: object) -> np.ndarray:
     return _d_criterion(*_fim_parts(fim))
 
 
-def e_optimality_from_fim(fim: object) -> np.ndarray:
+def e_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
     r"""E-optimality figure :math:`\lambda_{\max}(\mathbf J^{-1})` of 2x2 FIMs.
 
     Parameters
@@ -261,7 +262,7 @@ def e_optimality_from_fim(fim: object) -> np.ndarray:
 
 
 def crlb(
-    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR
 ) -> np.ndarray:
     r"""CRLB of the target position, :math:`\operatorname{tr}(\mathbf J_s^{-1})`, eq. (10), m^2.
 
@@ -300,7 +301,7 @@ def crlb(
 
 
 def d_optimality(
-    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR
 ) -> np.ndarray:
     r"""D-optimality figure :math:`\det(\mathbf J_s^{-1})`, m^4.
 
@@ -326,7 +327,7 @@ def d_optimality(
 
 
 def e_optimality(
-    uav_xy: object, target_xy: object, altitude: object, radar: Radar = _DEFAULT_RADAR
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR
 ) -> np.ndarray:
     r"""E-optimality figure :math:`\lambda_{\max}(\mathbf J_s^{-1})`, m^2.
 

@@ -24,6 +24,7 @@ worse than :math:`F^*` at every altitude of Fig. 2 (reasons below and in the use
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -38,7 +39,7 @@ __all__ = [
 
 
 def fixed_radius_polygon(
-    n_uavs: int, target_xy: object, radius: object = 5.0, rotation: float = 0.0
+    n_uavs: int, target_xy: ArrayLike, radius: ArrayLike = 5.0, rotation: float = 0.0
 ) -> np.ndarray:
     """Regular polygon of a fixed radius centred on the target (benchmark ``fixed_polygon``).
 
@@ -65,8 +66,8 @@ def fixed_radius_polygon(
 
 def arc_formation(
     n_uavs: int,
-    target_xy: object,
-    radius: object,
+    target_xy: ArrayLike,
+    radius: ArrayLike,
     span: float = 0.5 * np.pi,
     heading: float = 0.0,
 ) -> np.ndarray:
@@ -109,9 +110,9 @@ def arc_formation(
 
 def line_formation(
     n_uavs: int,
-    target_xy: object,
-    offset: object,
-    length: object,
+    target_xy: ArrayLike,
+    offset: ArrayLike,
+    length: ArrayLike,
     heading: float = 0.0,
 ) -> np.ndarray:
     """UAVs evenly spaced on a straight line beside the target (benchmark ``line``).
@@ -156,8 +157,8 @@ def line_formation(
 
 def random_disc_formations(
     n_uavs: int,
-    target_xy: object,
-    radius: object,
+    target_xy: ArrayLike,
+    radius: ArrayLike,
     n_draws: int,
     rng: np.random.Generator,
 ) -> np.ndarray:

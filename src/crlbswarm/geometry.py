@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -31,7 +32,7 @@ def clip_norm(x, y, limit):
 
 
 def check_scene(
-    uav_xy: object, target_xy: object, altitude: object
+    uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate a scene and return ``(q, s, h)`` as float arrays (not part of the API)."""
     q = _v.positions(uav_xy, "uav_xy")
@@ -47,7 +48,7 @@ def target_offsets(q: np.ndarray, s: np.ndarray) -> np.ndarray:
     return s[..., None, :] - q
 
 
-def slant_ranges(uav_xy: object, target_xy: object, altitude: object) -> np.ndarray:
+def slant_ranges(uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike) -> np.ndarray:
     r"""Slant range from each UAV to the target, eq. (1).
 
     .. math:: d_m = \sqrt{\lVert \mathbf q_m - \mathbf s \rVert^2 + H^2}
@@ -71,7 +72,7 @@ def slant_ranges(uav_xy: object, target_xy: object, altitude: object) -> np.ndar
     return np.sqrt(np.sum(diff * diff, axis=-1) + (h * h)[..., None])
 
 
-def elevation_angles(uav_xy: object, target_xy: object, altitude: object) -> np.ndarray:
+def elevation_angles(uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike) -> np.ndarray:
     r"""Elevation :math:`\phi_m` of each UAV seen from the target, rad (Sec. III).
 
     :math:`\sin\phi_m = H / d_m`; :math:`\phi_m \in (0, \pi/2]`, equal to :math:`\pi/2`
@@ -96,7 +97,7 @@ def elevation_angles(uav_xy: object, target_xy: object, altitude: object) -> np.
     return np.arctan2(h[..., None], np.hypot(diff[..., 0], diff[..., 1]))
 
 
-def azimuth_angles(uav_xy: object, target_xy: object) -> np.ndarray:
+def azimuth_angles(uav_xy: ArrayLike, target_xy: ArrayLike) -> np.ndarray:
     r"""Azimuth :math:`\theta_m` of the line from UAV :math:`m` to the target, rad, eq. (7).
 
     Eq. (7) writes :math:`(x_s - x_m)/d_m = \cos\phi_m\cos\theta_m`, so :math:`\theta_m` is
@@ -123,7 +124,7 @@ def azimuth_angles(uav_xy: object, target_xy: object) -> np.ndarray:
 
 
 def regular_polygon(
-    n_uavs: int, center_xy: object, radius: object, rotation: float = 0.0
+    n_uavs: int, center_xy: ArrayLike, radius: ArrayLike, rotation: float = 0.0
 ) -> np.ndarray:
     r"""Vertices of a regular polygon, the shape of the optimal formation (Sec. III).
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .design import optimal_radius
@@ -99,8 +100,8 @@ def _summarise(errors: np.ndarray, failed: np.ndarray, bound: float) -> MonteCar
 
 
 def monte_carlo_mse(
-    uav_xy: object,
-    target_xy: object,
+    uav_xy: ArrayLike,
+    target_xy: ArrayLike,
     altitude: float,
     radar: Radar = _DEFAULT_RADAR,
     n_trials: int = 20_000,
@@ -200,7 +201,7 @@ class EstimatorSweep:
 
 
 def estimator_vs_altitude(
-    altitudes: object = None,
+    altitudes: ArrayLike | None = None,
     n_uavs: int = 6,
     radar: Radar = _DEFAULT_RADAR,
     *,

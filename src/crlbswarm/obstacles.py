@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -39,7 +40,7 @@ __all__ = [
 ]
 
 
-def _rows(value: object, name: str, width: int) -> np.ndarray:
+def _rows(value: ArrayLike, name: str, width: int) -> np.ndarray:
     """A finite ``(n, width)`` array; an empty input gives ``(0, width)``."""
     arr = _v.as_float_array(value, name)
     if arr.size == 0:
@@ -65,7 +66,7 @@ class Obstacles:
     rectangles: np.ndarray
     circles: np.ndarray
 
-    def __init__(self, rectangles: object = (), circles: object = ()) -> None:
+    def __init__(self, rectangles: ArrayLike = (), circles: ArrayLike = ()) -> None:
         rects = _rows(rectangles, "rectangles", 4)
         circs = _rows(circles, "circles", 3)
         if np.any(rects[:, 0] >= rects[:, 1]) or np.any(rects[:, 2] >= rects[:, 3]):
@@ -197,7 +198,7 @@ def _clearance_batch(q, rects, circles, out):
         out[b] = clearance_at(q[b, 0], q[b, 1], rects, circles)
 
 
-def obstacle_clearance(positions: object, obstacles: Obstacles) -> np.ndarray:
+def obstacle_clearance(positions: ArrayLike, obstacles: Obstacles) -> np.ndarray:
     """Signed distance from each point to the nearest obstacle (negative inside), m.
 
     Parameters

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
@@ -146,7 +147,7 @@ class RadarParameter:
         """Name of the decibel form (``tx_power_dbm``), or empty."""
         return f"{self.name}_{self.db_unit.lower()}" if self.db_unit else ""
 
-    def db_to_linear(self, value: object) -> np.ndarray:
+    def db_to_linear(self, value: ArrayLike) -> np.ndarray:
         """Convert the decibel form to linear SI units.
 
         Parameters

@@ -334,14 +334,14 @@ class Scenario(ConfigModel):
     @cached_property
     def adjacency(self) -> Adjacency:
         """The communication graph as CSR adjacency."""
-        g = self.graph
+        spec = self.graph
         graph = communication_graph(
-            g.kind,
+            spec.kind,
             self.uavs.count,
-            radius=g.radius,
-            seed=g.seed,
-            edges=g.edges,
-            center=0 if g.center is None else g.center,
+            radius=spec.radius,
+            seed=spec.seed,
+            edges=spec.edges,
+            center=0 if spec.center is None else spec.center,
         )
         return Adjacency.from_graph(graph)
 

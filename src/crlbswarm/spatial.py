@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from . import _validation as _v
 
@@ -90,7 +91,7 @@ def _min_separation_batch(q, out):
         out[b] = min_separation(q[b])
 
 
-def smallest_separation(positions: object) -> np.ndarray:
+def smallest_separation(positions: ArrayLike) -> np.ndarray:
     """Smallest distance between two UAVs of each formation, m.
 
     Parameters
