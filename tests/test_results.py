@@ -68,3 +68,24 @@ def test_reproduce_from_python(tmp_path):
     manifest = json.loads(files[-1].read_text())
     assert sorted(manifest["files"]) == sorted(p.name for p in files[:-1])
     assert all(p.stat().st_size > 0 for p in files)
+
+
+def test_a_damaged_folder_is_refused_naming_the_problem(tmp_path):
+    """A missing array, arrays that do not fit the scenario file, or a corrupt archive: one
+    line naming the folder's file and what is wrong."""
+    simulate(load_scenario("paper"), seed=1).save(tmp_path)
+    npz = tmp_path / "trajectories.npz"
+    with np.load(npz) as data:
+        arrays = dict(data)
+    np.savez(npz, **{k: v for k, v in arrays.items() if k != "eta"})
+    with pytest.raises(FieldError, match="array 'eta' is missing") as info:
+        load_results(tmp_path)
+    assert info.value.field == "folder"
+    toml = (tmp_path / "scenario.toml").read_text().replace("count = 6", "count = 5", 1)
+    np.savez(npz, **arrays)
+    (tmp_path / "scenario.toml").write_text(toml)
+    with pytest.raises(FieldError, match=r"array 'positions' is shape \(1, 1501, 6, 2\)"):
+        load_results(tmp_path)
+    npz.write_bytes(b"not an archive")
+    with pytest.raises(FieldError, match="cannot read"):
+        load_results(tmp_path)

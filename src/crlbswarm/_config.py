@@ -76,15 +76,17 @@ def read_toml(text: str, source: str, error: type[ConfigError] = ConfigError) ->
         raise error(source, "", f"invalid TOML: {exc}") from None
 
 
-def read_toml_file(path: str | Path, field: str) -> tuple[str, dict[str, Any]]:
+def read_toml_file(
+    path: str | Path, error: type[ConfigError] = ConfigError
+) -> tuple[str, dict[str, Any]]:
     """Read and parse a TOML file.
 
     Parameters
     ----------
     path : str or path-like
         The file.
-    field : str
-        The argument or field that named the file, for error messages.
+    error : type, default ConfigError
+        The error to raise (a subclass of :class:`~crlbswarm.errors.ConfigError`).
 
     Returns
     -------
@@ -95,20 +97,22 @@ def read_toml_file(path: str | Path, field: str) -> tuple[str, dict[str, Any]]:
 
     Raises
     ------
-    FieldError
-        If the file cannot be read (naming ``field``).
     ConfigError
-        If it is not valid TOML.
+        If the file cannot be read or is not valid TOML (its source is the file name).
     """
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise FieldError(field, f"cannot read {str(path)!r}: {exc}") from None
-    return text, read_toml(text, str(path))
+        raise error(str(path), "", f"cannot read: {exc}") from None
+    return text, read_toml(text, str(path), error)
 
 
 def validate(
-    model: type[Model], data: Any, source: str, error: type[ConfigError] = ConfigError
+    model: type[Model],
+    data: Any,
+    source: str,
+    error: type[ConfigError] = ConfigError,
+    tags: tuple[str, ...] = (),
 ) -> Model:
     """Validate ``data`` as ``model``; every problem in one line.
 
@@ -122,6 +126,8 @@ def validate(
         Name of the data in error messages.
     error : type, default ConfigError
         The error to raise (a subclass of :class:`~crlbswarm.errors.ConfigError`).
+    tags : tuple of str, optional
+        The tags of the model's tagged unions, left out of the field paths.
 
     Returns
     -------
@@ -136,13 +142,13 @@ def validate(
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        problems = describe(exc)
+        problems = describe(exc, tags)
         field, first = problems[0]
         rest = [f"{f}: {r}" if f else r for f, r in problems[1:]]
         raise error(source, field, "; ".join([first, *rest])) from None
 
 
-def describe(exc: ValidationError) -> list[tuple[str, str]]:
+def describe(exc: ValidationError, tags: tuple[str, ...] = ()) -> list[tuple[str, str]]:
     """The problems of a pydantic error as ``(dotted field, reason)`` pairs.
 
     A validator that raises :class:`~crlbswarm.errors.FieldError` names its field itself
@@ -152,6 +158,9 @@ def describe(exc: ValidationError) -> list[tuple[str, str]]:
     ----------
     exc : pydantic.ValidationError
         The error.
+    tags : tuple of str, optional
+        Tags of tagged unions: pydantic inserts the tag after a list index
+        (``obstacles.1.circle.radius``); the paths leave it out (``obstacles.1.radius``).
 
     Returns
     -------
@@ -166,7 +175,7 @@ def describe(exc: ValidationError) -> list[tuple[str, str]]:
             continue
         loc = [str(p) for p in err["loc"] if not str(p).startswith("function-")]
         # Drop the tag pydantic inserts after a list index of a tagged union (obstacles.1.circle).
-        loc = [p for i, p in enumerate(loc) if not (i and loc[i - 1].isdigit() and p in _TAGS)]
+        loc = [p for i, p in enumerate(loc) if not (i and loc[i - 1].isdigit() and p in tags)]
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "missing":
             msg = "missing required field"
@@ -215,10 +224,6 @@ def _type_text(annotation: object) -> str:
     return getattr(annotation, "__name__", str(annotation))
 
 
-#: Tags of the tagged unions of the scenario schema (obstacle types).
-_TAGS = ("rectangle", "circle")
-
-
 def model_to_toml(model: BaseModel, header: str) -> str:
     """A model as a TOML document, each value commented with its field's description.
 
@@ -262,8 +267,11 @@ def model_to_toml(model: BaseModel, header: str) -> str:
                 array.append(tomlkit.item(item))
             doc.add(tomlkit.nl())
             doc.add(key, array)
-        elif isinstance(value, list) and not value and key == "obstacles":
-            continue  # an empty array of tables is written as nothing
+        elif (
+            value == []
+            and type(model).model_fields[key].get_default(call_default_factory=True) == []
+        ):
+            continue  # an empty list that is also the default: written as nothing
         else:
             doc.add(key, commented(value, model, key))
     return tomlkit.dumps(doc)

@@ -1,8 +1,9 @@
 """Input checks shared by the public functions.
 
-Every check raises :class:`ValueError` whose message starts with the name of the
-offending argument, so that the CLI can print it as one line. The checks never
-modify the caller's array: they return a new float array (or a read-only view).
+Every check raises :class:`~crlbswarm.errors.FieldError` (a :class:`ValueError`) carrying the
+name of the offending argument and the reason, whose message is one line; the CLI maps the
+name to its option. The checks never modify the caller's array: they return it as a float
+array (the caller's own array when it already is one, so callers copy before writing).
 """
 
 from __future__ import annotations
@@ -17,6 +18,11 @@ __all__: list[str] = []
 
 #: Largest seed (seeds are stored as int64).
 MAX_SEED = 2**63 - 1
+
+#: Fewest UAVs of a formation: the design and the benchmarks need three (with two, the
+#: formation and the target are collinear in the horizontal plane for some geometries and
+#: the regular polygon degenerates).
+MIN_UAVS = 3
 
 
 def as_float_array(value: object, name: str) -> np.ndarray:
@@ -94,9 +100,38 @@ def scalar(value: object, name: str) -> float:
     return float(arr)
 
 
+def positive_scalar(value: object, name: str) -> float:
+    """Check a single finite number > 0."""
+    number = scalar(value, name)
+    if not number > 0:
+        raise FieldError(name, f"must be > 0, got {value!r}")
+    return number
+
+
 def seed(value: object, name: str) -> int:
     """Check a seed: an integer in ``0 .. MAX_SEED``."""
     s = count(value, name, 0)
     if s > MAX_SEED:
         raise FieldError(name, f"must be at most 2**63 - 1, got {s}")
     return s
+
+
+def uav_count(value: object, name: str) -> int:
+    """Check a number of UAVs of a formation: an integer of at least :data:`MIN_UAVS`."""
+    return count(value, name, MIN_UAVS)
+
+
+def seed_range(
+    first: object, n: object, first_name: str, n_name: str | None = None
+) -> tuple[int, int]:
+    """Check the seeds ``first .. first + n - 1``: ``first`` a seed, ``n >= 1``, and the last
+    seed at most :data:`MAX_SEED`. The error names ``n_name``, or ``first_name`` when the
+    number of seeds is not the caller's choice (``n_name`` None)."""
+    start = seed(first, first_name)
+    runs = count(n, n_name or "n", 1)
+    if start + runs - 1 > MAX_SEED:
+        raise FieldError(
+            n_name or first_name,
+            f"the seeds {start}..{start + runs - 1} go beyond the largest, 2**63 - 1",
+        )
+    return start, runs

@@ -40,10 +40,11 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from . import __version__
+from . import _validation as _v
 from ._config import ConfigModel, read_toml, read_toml_file, validate
 from .errors import CampaignError, FieldError, ScenarioError
 from .output import atomic_path, write_text
-from .scenario import Scenario, scenario_data
+from .scenario import BUILTIN_SCENARIOS, Scenario, scenario_data
 
 __all__ = ["CampaignError", "CampaignSpec", "plan_tasks", "run_campaign", "run_task"]
 
@@ -148,12 +149,11 @@ class CampaignSpec(ConfigModel):
 
         Raises
         ------
-        FieldError
-            If the file cannot be read (field ``spec``).
         ConfigError
-            If it is not a valid spec (one line naming the field).
+            If the file cannot be read or is not a valid spec (one line naming the file and
+            the field).
         """
-        text, _ = read_toml_file(path, "spec")
+        text, _ = read_toml_file(path)
         spec = cls.from_toml(text, source=str(path))
         beside = Path(path).parent / spec.base
         if not Path(spec.base).is_absolute() and beside.is_file():
@@ -168,13 +168,15 @@ class CampaignSpec(ConfigModel):
         dict
             Scenario data, ready for :meth:`crlbswarm.Scenario.from_dict`.
         """
+        if self.base not in BUILTIN_SCENARIOS and not Path(self.base).is_file():
+            known = ", ".join(BUILTIN_SCENARIOS)
+            raise FieldError(
+                "base", f"{self.base!r} is neither a built-in scenario ({known}) nor a file"
+            )
         try:
             return scenario_data(self.base)[1]
-        except ScenarioError as exc:
-            # "no such scenario" names the base itself; a broken file names the file.
-            raise FieldError(
-                "base", exc.reason if exc.source == "scenario" else str(exc)
-            ) from None
+        except ScenarioError as exc:  # a file that cannot be read or parsed
+            raise FieldError("base", str(exc)) from None
 
     def variants(self) -> list[dict[str, Any]]:
         """The changed fields of every variant, in a fixed order.
@@ -205,7 +207,9 @@ class CampaignSpec(ConfigModel):
         return [{}]
 
 
-def _apply(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+def _apply(base: dict[str, Any], changes: dict[str, Any], table: str) -> dict[str, Any]:
+    """``base`` with the dotted fields of ``changes`` set; ``table`` (``grid`` or
+    ``random.fields``) names where the changes came from, for errors."""
     data = copy.deepcopy(base)
     for dotted, value in changes.items():
         node = data
@@ -213,7 +217,7 @@ def _apply(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
         for key in parents:
             node = node.setdefault(key, {})
             if not isinstance(node, dict):
-                raise FieldError(f"grid.{dotted}", f"'{key}' is not a table of the scenario")
+                raise FieldError(f"{table}.{dotted}", f"'{key}' is not a table of the scenario")
         node[leaf] = value
     return data
 
@@ -241,7 +245,7 @@ def plan_tasks(spec: CampaignSpec) -> tuple[list[dict[str, Any]], list[tuple[int
     base = spec.base_dict()
     scenarios = []
     for i, changes in enumerate(spec.variants()):
-        data = _apply(base, changes)
+        data = _apply(base, changes, "random.fields" if spec.random is not None else "grid")
         Scenario.from_dict(data, source=f"variant {i} ({_label(changes)})")
         scenarios.append(data)
     first, count = spec.seeds.start, spec.seeds.count
@@ -258,7 +262,7 @@ def _label(changes: dict[str, Any]) -> str:
 
 
 def run_task(
-    scenario_data: dict[str, Any], variant: int, first: int, last: int, trajectories: bool
+    scenario: dict[str, Any], variant: int, first: int, last: int, trajectories: bool
 ) -> dict[str, Any]:
     """Simulate one task (a variant's seeds ``first..last``) and return its metrics.
 
@@ -266,8 +270,8 @@ def run_task(
 
     Parameters
     ----------
-    scenario_data : dict
-        The variant's scenario.
+    scenario : dict
+        The variant's scenario data.
     variant : int
         Variant id.
     first : int
@@ -289,7 +293,7 @@ def run_task(
     from .simulation import simulate
 
     result = simulate(
-        Scenario.from_dict(scenario_data),
+        Scenario.from_dict(scenario),
         seeds=range(first, last + 1),
         keep_trajectories=trajectories,
     )
@@ -354,6 +358,8 @@ def run_campaign(
     dict
         ``variants``, ``tasks``, ``skipped`` (already finished) and ``ran`` task counts.
     """
+    if n_workers is not None:
+        _v.count(n_workers, "n_workers", 1)
     folder = Path(out)
     scenarios, tasks = plan_tasks(spec)  # validate everything before anything runs
     variants = spec.variants()

@@ -20,14 +20,16 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__
-from .errors import CampaignError, FieldError, SimulationDivergedError
+from ._validation import MIN_UAVS
+from .errors import CampaignError, ConfigError, FieldError, SimulationDivergedError
+from .paper import FIGURE_FORMATS, FIGURE_RUNS
 from .radar import Radar, radar_parameters
 
 __all__ = ["build_parser", "format_design", "main"]
 
 EXIT_USAGE = 2
 
-#: The built-in scenarios, for help texts (listed without importing the schema).
+#: Help text of a SCENARIO argument.
 _BUILTIN_HELP = "built-in name (see `crlbswarm scenario list`) or TOML file"
 
 
@@ -35,7 +37,7 @@ class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line on stderr (no usage dump), exit 2."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+        self.exit(EXIT_USAGE, f"crlbswarm: error: {message}\n")
 
 
 def _option(target: Any, fields: dict[str, str], *flags: str, field: str, **kwargs: Any) -> None:
@@ -76,7 +78,7 @@ def _add_radar_options(parser: argparse.ArgumentParser, fields: dict[str, str]) 
                 dest=p.db_name,
                 type=float,
                 metavar=p.db_unit.upper(),
-                help=f"{p.label}, {p.db_unit}",
+                help=f"{p.label}, {p.db_unit} (default {p.db_default:g})",
             )
 
 
@@ -139,7 +141,7 @@ def _add_design(sub: Any) -> None:
         field="n_uavs",
         type=int,
         default=6,
-        help="number of UAVs M >= 3 (default 6)",
+        help=f"number of UAVs M >= {MIN_UAVS} (default %(default)s)",
     )
     _option(
         design,
@@ -149,7 +151,7 @@ def _add_design(sub: Any) -> None:
         type=float,
         default=20.0,
         metavar="H",
-        help="flight altitude H, m (default 20)",
+        help="flight altitude H, m (default %(default)s)",
     )
     _option(
         design,
@@ -170,7 +172,7 @@ def _add_design(sub: Any) -> None:
         type=float,
         default=0.0,
         metavar="DEG",
-        help="azimuth of UAV 1 seen from the target, degrees (default 0)",
+        help="azimuth of UAV 1 seen from the target, degrees (default %(default)s)",
     )
     design.add_argument("--json", action="store_true", help="print JSON instead of a table")
     _add_radar_options(design, fields)
@@ -203,8 +205,8 @@ def _add_figures(sub: Any) -> None:
         "--format",
         field="fmt",
         default="png",
-        choices=("png", "pdf", "svg"),
-        help="image format (default png)",
+        choices=FIGURE_FORMATS,
+        help="image format (default %(default)s)",
     )
     _option(
         figures,
@@ -213,7 +215,7 @@ def _add_figures(sub: Any) -> None:
         field="n_uavs",
         type=int,
         default=6,
-        help="number of UAVs in Fig. 2 (default 6)",
+        help="number of UAVs in Fig. 2 (default %(default)s)",
     )
     _option(
         figures,
@@ -223,7 +225,7 @@ def _add_figures(sub: Any) -> None:
         type=int,
         default=0,
         help="seed of the paper mission of Figs. 3-4, of the Monte Carlo sweep, and the "
-        "first of the 50 seeds of the sensing figures (default 0)",
+        f"first of the {FIGURE_RUNS} seeds of the sensing figures (default %(default)s)",
     )
 
 
@@ -259,7 +261,7 @@ def _add_simulate(sub: Any) -> None:
         field="seed",
         type=int,
         default=0,
-        help="seed of the first run (default 0)",
+        help="seed of the first run (default %(default)s)",
     )
     _option(
         simulate,
@@ -410,22 +412,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     # Validate everything before running anything; create the folder only after the run.
     scenario = load_scenario(args.scenario)
-    first = _v.seed(args.seed, "seed")
-    _v.count(args.runs, "seeds", 1)
-    if first + args.runs - 1 > _v.MAX_SEED:
-        raise FieldError(
-            "seeds", f"seeds must stay below 2**63, got up to {first + args.runs - 1}"
-        )
+    first, runs = _v.seed_range(args.seed, args.runs, "seed", "seeds")
     check_output_folder(args.out, "folder")
 
     from tqdm import tqdm
 
     from .simulation import simulate
 
-    with tqdm(total=args.runs, unit="run", disable=None, file=sys.stderr) as bar:
+    with tqdm(total=runs, unit="run", disable=None, file=sys.stderr) as bar:
         result = simulate(
             scenario,
-            seeds=range(first, first + args.runs),
+            seeds=range(first, first + runs),
             keep_trajectories=not args.no_trajectories,
             progress=lambda done: bar.update(done - bar.n),
         )
@@ -435,13 +432,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from .campaign import CampaignSpec, plan_tasks
+    from .campaign import CampaignSpec
     from .output import check_output_folder
 
     spec, text = CampaignSpec.from_file(args.spec)
-    plan_tasks(spec)  # every variant validated before anything runs or is written
-    if args.workers is not None and args.workers < 1:
-        raise FieldError("n_workers", f"must be >= 1, got {args.workers}")
     check_output_folder(args.out, "out")
 
     from tqdm import tqdm
@@ -474,8 +468,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _message(exc: FieldError, fields: dict[str, str]) -> str:
-    """The error's line, its library field replaced by the option that set it."""
-    option = fields.get(exc.field)
+    """The error's line, its library argument replaced by the option that set it (a field
+    of a file, a ``ConfigError``, keeps the file's name and its own dotted field)."""
+    option = None if isinstance(exc, ConfigError) else fields.get(exc.field)
     return str(exc) if option is None else f"{option}: {exc.reason}"
 
 

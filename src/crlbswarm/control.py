@@ -521,14 +521,14 @@ def leader_guidance(
     q = _v.point(leader_xy, "leader_xy")
     goal = _v.point(goal_xy, "goal_xy")
     gains = _check_gains(gains)
-    rho = float(_v.finite(footprint, "footprint"))
+    rho = _v.scalar(footprint, "footprint")
     if rho < 0:
         raise FieldError("footprint", f"must be >= 0, got {footprint!r}")
     obs = check_obstacles(obstacles) if obstacles is not None else Obstacles()
     c = q if center_xy is None else _v.point(center_xy, "center_xy")
-    if rho > 0 and (center_xy is None or obstacles is None):
+    if rho > 0 and gains.formation_steering and (center_xy is None or obstacles is None):
         raise FieldError("footprint", "steering needs center_xy and obstacles")
-    step = float(_v.positive(dt, "dt"))
+    step = _v.positive_scalar(dt, "dt")
     tv = _v.point(goal_velocity, "goal_velocity")
     shape = _v.broadcast("goal_xy", q.shape, goal.shape)
     shape = _v.broadcast("center_xy", shape, c.shape)
@@ -689,7 +689,7 @@ def eta_target(
     c = _v.point(center_xy, "center_xy")
     s = _v.point(target_xy, "target_xy")
     shape = _v.broadcast("target_xy", c.shape, s.shape)
-    r = float(_v.positive(radius, "radius"))
+    r = _v.positive_scalar(radius, "radius")
     rl = _check_rule(rule)
     mrg = rl.margin_for(_check_gains(gains))
     obs = check_obstacles(obstacles)
@@ -730,7 +730,7 @@ def eta_update(eta: ArrayLike, goal: ArrayLike, rule: EtaRule, dt: float) -> np.
     e = _scale(eta, "eta")
     goal_eta = _scale(goal, "goal")
     rl = _check_rule(rule)
-    step = rl.rate * float(_v.positive(dt, "dt"))
+    step = rl.rate * _v.positive_scalar(dt, "dt")
     shape = _v.broadcast("goal", e.shape, goal_eta.shape)
     if not rl.enabled:
         return np.ones(shape)
@@ -781,7 +781,7 @@ def formation_cost(
     qn = _formation_arrays(next_positions, "next_positions", adjacency)
     d = _slot_offsets(delta, adjacency)
     ref = _v.point(v_ref, "v_ref")
-    step = float(_v.positive(dt, "dt"))
+    step = _v.positive_scalar(dt, "dt")
     shape = _v.broadcast("next_positions", q.shape[:-2], qn.shape[:-2], ref.shape[:-1])
     mshape = q.shape[-2:]
     qb = _flat(q, shape, mshape)

@@ -37,7 +37,7 @@ from . import _validation as _v
 from .errors import FieldError
 from .fisher import crlb
 from .geometry import regular_polygon
-from .radar import Radar
+from .radar import Radar, check_radar
 
 __all__ = [
     "crlb_bound",
@@ -49,7 +49,6 @@ __all__ = [
 ]
 
 _DEFAULT_RADAR = Radar()
-_MIN_UAVS = 3
 
 
 def information_weight(
@@ -157,9 +156,8 @@ def optimal_radius(altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.nda
 
 def _optimal_weights(n_uavs: ArrayLike, altitude: ArrayLike, radar: Radar) -> np.ndarray:
     """Optimal :math:`w^*_m`, shape ``(..., M)`` for altitude of shape ``(...)``."""
-    n = _v.count(n_uavs, "n_uavs", _MIN_UAVS)
-    if radar.n_uavs is not None and radar.n_uavs != n:
-        raise FieldError("radar", f"per-UAV fields have length {radar.n_uavs} but n_uavs is {n}")
+    n = _v.uav_count(n_uavs, "n_uavs")
+    check_radar(radar, n)
     h = _v.positive(altitude, "altitude")[..., None]
     w = information_weight(optimal_elevation(h, radar), h, radar)
     return np.broadcast_to(w, (*w.shape[:-1], n))
@@ -242,13 +240,9 @@ def optimal_formation(
            [-14.14,   0.  ],
            [ -0.  , -14.14]])
     """
-    n = _v.count(n_uavs, "n_uavs", _MIN_UAVS)
+    n = _v.uav_count(n_uavs, "n_uavs")
+    a = np.asarray(check_radar(radar, n))
     if radar.n_uavs is not None:
-        if radar.n_uavs != n:
-            raise FieldError(
-                "radar", f"per-UAV fields have length {radar.n_uavs} but n_uavs is {n}"
-            )
-        a = np.asarray(radar.snr_constant)
         if not np.allclose(a, a[0], rtol=1e-12, atol=0.0):
             raise FieldError(
                 "radar",
@@ -296,6 +290,7 @@ def design_report(
         (sqrt of the CRLB), ``radar`` (the link parameters in linear SI units).
     """
     target = np.asarray(target_xy, dtype=float)
+    rotation_deg = _v.scalar(rotation_deg, "rotation_deg")
     positions = optimal_formation(n_uavs, target, altitude, radar, np.radians(rotation_deg))
     value = float(crlb(positions, target, altitude, radar))
     return {

@@ -59,7 +59,7 @@ def fixed_radius_polygon(
     ndarray, shape (..., M, 2)
         Horizontal positions, m.
     """
-    n = _v.count(n_uavs, "n_uavs", 3)
+    n = _v.uav_count(n_uavs, "n_uavs")
     r = _v.positive(radius, "radius")
     return regular_polygon(n, target_xy, r, rotation)
 
@@ -96,7 +96,7 @@ def arc_formation(
     ndarray, shape (..., M, 2)
         Horizontal positions, m.
     """
-    n = _v.count(n_uavs, "n_uavs", 3)
+    n = _v.uav_count(n_uavs, "n_uavs")
     s = _v.point(target_xy, "target_xy")
     r = _v.positive(radius, "radius")
     width = _v.scalar(span, "span")
@@ -140,7 +140,7 @@ def line_formation(
     ndarray, shape (..., M, 2)
         Horizontal positions, m.
     """
-    n = _v.count(n_uavs, "n_uavs", 3)
+    n = _v.uav_count(n_uavs, "n_uavs")
     s = _v.point(target_xy, "target_xy")
     off = _v.positive(offset, "offset")
     size = _v.positive(length, "length")
@@ -185,7 +185,7 @@ def random_disc_formations(
     ndarray, shape (..., n_draws, M, 2)
         Horizontal positions, m.
     """
-    n = _v.count(n_uavs, "n_uavs", 3)
+    n = _v.uav_count(n_uavs, "n_uavs")
     k = _v.count(n_draws, "n_draws", 1)
     s = _v.point(target_xy, "target_xy")
     r = _v.positive(radius, "radius")

@@ -45,8 +45,10 @@ __all__ = [
     "formation_step_limit",
 ]
 
-#: Graph kinds understood by :func:`communication_graph`, each with the options it takes
-#: (the scenario's ``[graph]`` table is derived from this one declaration).
+#: Graph kinds understood by :func:`communication_graph`, each with the options it takes:
+#: the scenario's ``[graph]`` table takes its ``kind`` from here and refuses an option that
+#: does not belong to the kind (the options themselves are the keyword arguments of
+#: :func:`communication_graph` and fields of the scenario's table).
 GRAPH_KINDS: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {
         "ring": (),
@@ -142,7 +144,7 @@ def communication_graph(
     radius: float | None = None,
     seed: int | None = None,
     edges: list[list[int]] | None = None,
-    center: int = 0,
+    center: int | None = None,
 ) -> nx.Graph:
     """Build the communication graph of a formation.
 
@@ -161,8 +163,8 @@ def communication_graph(
         Seed of ``random_geometric``.
     edges : list of [int, int], optional
         Undirected edges for ``edges``.
-    center : int, default 0
-        Hub of ``star``.
+    center : int, optional
+        Hub of ``star`` (UAV 0 if not given).
 
     Returns
     -------
@@ -185,7 +187,7 @@ def communication_graph(
     elif kind == "path":
         graph = nx.path_graph(n)
     elif kind == "star":
-        c = _v.count(center, "graph.center", 0)
+        c = 0 if center is None else _v.count(center, "graph.center", 0)
         if c >= n:
             raise FieldError("graph.center", f"must be a UAV index below {n}, got {c}")
         graph = nx.relabel_nodes(nx.star_graph(n - 1), lambda i: (i + c) % n)

@@ -89,10 +89,10 @@ def reproduce(
     if fmt not in FIGURE_FORMATS:
         raise FieldError("fmt", f"expected one of {', '.join(FIGURE_FORMATS)}, got {fmt!r}")
     n_trials = FIGURE_TRIALS if trials is None else _v.count(trials, "trials", 1)
-    n_runs = FIGURE_RUNS if runs is None else _v.count(runs, "runs", 1)
-    first = _v.seed(seed, "seed")
-    if first + n_runs - 1 > _v.MAX_SEED:
-        raise FieldError("seed", f"must be at most 2**63 - {n_runs}, got {seed}")
+    if runs is None:
+        first, n_runs = _v.seed_range(seed, FIGURE_RUNS, "seed")
+    else:
+        first, n_runs = _v.seed_range(seed, runs, "seed", "runs")
     out = Path(out_dir)
     check_output_folder(out, "out_dir")
     figures, manifest = _compute(n_uavs, first, n_trials, n_runs)

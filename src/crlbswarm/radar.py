@@ -163,6 +163,14 @@ class RadarParameter:
         convert = dbm_to_watts if self.db_unit == "dBm" else db_to_linear
         return np.asarray(convert(np.asarray(value, dtype=float)))
 
+    @property
+    def db_default(self) -> float:
+        """The default in the decibel form (the inverse of :meth:`db_to_linear`); NaN if the
+        field has no decibel form."""
+        if not self.db_unit:
+            return math.nan
+        return 10.0 * math.log10(self.default) + (30.0 if self.db_unit == "dBm" else 0.0)
+
 
 @dataclass(frozen=True, eq=False)
 class Radar:
@@ -423,7 +431,7 @@ def check_radar(radar: object, n_uavs: int) -> float | np.ndarray:
         raise FieldError("radar", f"expected a crlbswarm.Radar, got {type(radar).__name__}")
     if radar.n_uavs is not None and radar.n_uavs != n_uavs:
         raise FieldError(
-            "radar", f"per-UAV fields have length {radar.n_uavs} but uav_xy has {n_uavs} UAVs"
+            "radar", f"per-UAV fields have length {radar.n_uavs} but there are {n_uavs} UAVs"
         )
     return radar.snr_constant
 
@@ -484,8 +492,7 @@ def _default_text(p: RadarParameter) -> str:
     """``default 1e-12 (-90 dBm)``: the default, and its decibel form where there is one."""
     text = f"default {p.default:g}"
     if p.db_unit:
-        db = 10.0 * math.log10(p.default) + (30.0 if p.db_unit == "dBm" else 0.0)
-        text += f" ({db:g} {p.db_unit})"
+        text += f" ({p.db_default:g} {p.db_unit})"
     return text
 
 

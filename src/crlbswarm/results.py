@@ -4,7 +4,7 @@
 metrics once (convergence, clearance, separation, cost and, with sensing in the loop, the
 estimation error), gives the columns behind each figure, summarises the batch, and writes
 itself to a folder (:meth:`MissionResult.save`) that :func:`load_results` reads back to an
-equal result.
+result with the same arrays and metrics.
 
 Adding an output format: write a method beside :meth:`MissionResult.save` (or a function
 taking a result) and list its file in ``docs/scenarios.md``.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -372,7 +373,8 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
     Returns
     -------
     MissionResult
-        The result, with its metrics recomputed from the arrays (equal to the saved ones).
+        The result: the saved arrays, and the metrics recomputed from them (bit for bit
+        those saved).
 
     Raises
     ------
@@ -386,7 +388,37 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
         if not (path / name).is_file():
             raise FieldError("folder", f"{str(path)!r} holds no saved result ({name} missing)")
     scenario = load_scenario(path / "scenario.toml")
-    with np.load(path / "trajectories.npz") as data:
-        arrays = {name: data.get(name) for name in _ARRAY_FIELDS}
+    npz = path / "trajectories.npz"
+    try:
+        with np.load(npz, allow_pickle=False) as data:
+            arrays = {name: data.get(name) for name in _ARRAY_FIELDS}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise FieldError("folder", f"cannot read {str(npz)!r}: {exc}") from None
+    _check_arrays(arrays, scenario, npz)
     arrays["bound"] = float(arrays["bound"])
     return MissionResult(scenario=scenario, **arrays)
+
+
+def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None:
+    """The arrays a result of ``scenario`` must have, with their shapes (B runs)."""
+    k1, m = scenario.time.steps + 1, scenario.uavs.count
+    seeds = arrays["seeds"]
+    b = -1 if seeds is None or seeds.ndim != 1 else seeds.shape[0]
+    shapes = {
+        "seeds": (b,), "time": (k1,), "centroid": (b, k1, 2), "reference_velocity": (b, k1, 2),
+        "target": (b, k1, 2), "eta": (b, k1), "crlb": (b, k1), "cost": (b, k1 - 1),
+        "clearance": (b, k1), "separation": (b, k1), "bound": (),
+    }  # fmt: skip
+    if arrays["positions"] is not None or arrays["velocities"] is not None:
+        shapes.update(positions=(b, k1, m, 2), velocities=(b, k1, m, 2))
+    if scenario.estimation.enabled:
+        shapes.update(estimate=(b, k1, 2), estimate_variance=(b, k1), pcrb=(k1,))
+    for name, shape in shapes.items():
+        value = arrays[name]
+        if value is None or value.shape != shape:
+            got = "missing" if value is None else f"shape {value.shape}"
+            raise FieldError(
+                "folder",
+                f"{str(npz)!r}: array {name!r} is {got}, expected shape {shape} for its "
+                f"scenario.toml ({m} UAVs, {k1 - 1} steps)",
+            )

@@ -14,7 +14,7 @@ derived from the fields of :class:`crlbswarm.Radar`, ``[control]`` is
 :class:`crlbswarm.ControlGains` and ``[eta]`` :class:`crlbswarm.EtaRule`, ``[graph]``
 follows :data:`crlbswarm.GRAPH_KINDS`. Validation happens when the scenario is built, before
 anything runs: field by field (unknown or missing fields, wrong types, fewer than 3 UAVs),
-then the scene as a whole (:func:`crlbswarm.scenario_checks.check_scene`: a disconnected
+then the scene as a whole (:func:`crlbswarm.scenario_checks.check_scenario`: a disconnected
 graph, a start or target inside an obstacle, gains beyond the stability bounds, ...). Any
 failure raises :class:`crlbswarm.ScenarioError` (a :class:`ValueError`) whose one-line
 message names the dotted field.
@@ -23,6 +23,7 @@ message names the dotted field.
 from __future__ import annotations
 
 import math
+import typing
 from collections.abc import Iterator, Mapping
 from functools import cached_property
 from importlib import resources
@@ -32,14 +33,15 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, create_model, field_validator, model_validator
 
-from ._config import ConfigModel, model_to_toml, read_toml, validate
+from ._config import ConfigModel, model_to_toml, read_toml, read_toml_file, validate
+from ._validation import MIN_UAVS
 from .control import ControlGains, EtaRule
 from .design import optimal_formation
 from .errors import FieldError, ScenarioError
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph
 from .obstacles import Obstacles
 from .radar import Radar, radar_parameters
-from .scenario_checks import check_scene
+from .scenario_checks import check_scenario
 
 __all__ = [
     "BUILTIN_SCENARIOS",
@@ -72,7 +74,7 @@ Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 class UavsConfig(ConfigModel):
     """The UAVs and their start."""
 
-    count: int = Field(ge=3, description="number of UAVs M (>= 3)")
+    count: int = Field(ge=MIN_UAVS, description=f"number of UAVs M (>= {MIN_UAVS})")
     leader: int = Field(0, ge=0, description="index of the leader (the paper's UAV 1 is 0)")
     start_region: Annotated[list[Pair], Field(min_length=2, max_length=2)] | None = Field(
         None, description="[[x_min, x_max], [y_min, y_max]], m: starts drawn uniformly (seeded)"
@@ -129,6 +131,11 @@ class _RadarTable(ConfigModel):
             The radar, linear SI units.
         """
         return Radar(**self.model_dump())
+
+    @model_validator(mode="after")
+    def _constant_in_range(self) -> _RadarTable:
+        self.to_radar()  # every field may be fine while A = p G_p beta0 / (kappa sigma0^2) is not
+        return self
 
 
 # The [radar] table: one scalar field per declared field of Radar (default, unit and doc).
@@ -194,7 +201,7 @@ class GraphConfig(ConfigModel):
         None, description="edges: explicit list of [m, p] pairs"
     )
     center: Annotated[int, Field(ge=0)] | None = Field(
-        None, description="star: index of the hub (default 0)"
+        None, description="star: index of the hub (default: UAV 0)"
     )
 
     @model_validator(mode="after")
@@ -202,7 +209,7 @@ class GraphConfig(ConfigModel):
         options = {o for opts in GRAPH_KINDS.values() for o in opts}
         for option in sorted(options):
             if getattr(self, option) is not None and option not in GRAPH_KINDS[self.kind]:
-                raise ValueError(f"option '{option}' does not apply to kind '{self.kind}'")
+                raise FieldError(f"graph.{option}", f"does not apply to kind '{self.kind}'")
         return self
 
 
@@ -219,6 +226,27 @@ class RectangleObstacle(ConfigModel):
             raise ValueError("need x_min < x_max and y_min < y_max")
         return self
 
+    def overlaps_box(self, x0: float, x1: float, y0: float, y1: float) -> bool:
+        """Whether the rectangle meets the box ``[x0, x1] x [y0, y1]``.
+
+        Parameters
+        ----------
+        x0 : float
+            Smallest x of the box, m.
+        x1 : float
+            Largest x of the box, m.
+        y0 : float
+            Smallest y of the box, m.
+        y1 : float
+            Largest y of the box, m.
+
+        Returns
+        -------
+        bool
+            True if they share a point.
+        """
+        return self.x[0] <= x1 and x0 <= self.x[1] and self.y[0] <= y1 and y0 <= self.y[1]
+
 
 class CircleObstacle(ConfigModel):
     """Disc."""
@@ -227,8 +255,39 @@ class CircleObstacle(ConfigModel):
     center: Pair = Field(description="[x, y], m")
     radius: PositiveFloat = Field(description="m")
 
+    def overlaps_box(self, x0: float, x1: float, y0: float, y1: float) -> bool:
+        """Whether the disc meets the box ``[x0, x1] x [y0, y1]``.
 
+        Parameters
+        ----------
+        x0 : float
+            Smallest x of the box, m.
+        x1 : float
+            Largest x of the box, m.
+        y0 : float
+            Smallest y of the box, m.
+        y1 : float
+            Largest y of the box, m.
+
+        Returns
+        -------
+        bool
+            True if they share a point.
+        """
+        cx = min(max(self.center[0], x0), x1)
+        cy = min(max(self.center[1], y0), y1)
+        return math.hypot(cx - self.center[0], cy - self.center[1]) <= self.radius
+
+
+#: An obstacle table: one of the shapes, told apart by its ``type``.
 Obstacle = Annotated[RectangleObstacle | CircleObstacle, Field(discriminator="type")]
+
+#: The ``type`` tags of the obstacle shapes (pydantic puts them in its error locations).
+OBSTACLE_TYPES: tuple[str, ...] = tuple(
+    tag
+    for shape in typing.get_args(typing.get_args(Obstacle)[0])
+    for tag in typing.get_args(shape.model_fields["type"].annotation)
+)
 
 
 class EstimationConfig(ConfigModel):
@@ -319,8 +378,8 @@ class Scenario(ConfigModel):
     )
 
     @model_validator(mode="after")
-    def _check_scene(self) -> Scenario:
-        check_scene(self)
+    def _check_whole(self) -> Scenario:
+        check_scenario(self)
         return self
 
     # -- derived objects -----------------------------------------------------------------
@@ -341,7 +400,7 @@ class Scenario(ConfigModel):
             radius=spec.radius,
             seed=spec.seed,
             edges=spec.edges,
-            center=0 if spec.center is None else spec.center,
+            center=spec.center,
         )
         return Adjacency.from_graph(graph)
 
@@ -403,7 +462,7 @@ class Scenario(ConfigModel):
         ScenarioError
             With one line naming the field and the reason.
         """
-        return validate(cls, data, source, ScenarioError)
+        return validate(cls, data, source, ScenarioError, tags=OBSTACLE_TYPES)
 
     def to_toml(self) -> str:
         """The scenario as a TOML document, each field commented with its meaning and unit.
@@ -439,10 +498,15 @@ def builtin_scenario_text(name: str) -> str:
     """
     files = _builtin_files()
     if name not in files:
-        raise FieldError(
-            "scenario", f"no built-in scenario {name!r} (known: {', '.join(sorted(files))})"
-        )
+        raise _unknown(name)
     return files[name].read_text(encoding="utf-8")
+
+
+def _unknown(key: str) -> ScenarioError:
+    known = ", ".join(sorted(_builtin_files()))
+    return ScenarioError(
+        "scenario", "", f"{key!r} is neither a built-in scenario ({known}) nor a file"
+    )
 
 
 class _BuiltinScenarios(Mapping[str, dict[str, Any]]):
@@ -450,9 +514,12 @@ class _BuiltinScenarios(Mapping[str, dict[str, Any]]):
     parsed TOML file on every access)."""
 
     def __getitem__(self, name: str) -> dict[str, Any]:
-        if name not in _builtin_files():
+        if name not in self:
             raise KeyError(name)
         return read_toml(builtin_scenario_text(name), f"scenario '{name}'", ScenarioError)
+
+    def __contains__(self, name: object) -> bool:
+        return name in _builtin_files()
 
     def __iter__(self) -> Iterator[str]:
         return iter(sorted(_builtin_files()))
@@ -491,17 +558,9 @@ def scenario_data(name_or_path: str | Path) -> tuple[str, dict[str, Any]]:
     key = str(name_or_path)
     if key in BUILTIN_SCENARIOS:
         return f"scenario '{key}'", BUILTIN_SCENARIOS[key]
-    path = Path(name_or_path)
-    if not path.is_file():
-        known = ", ".join(BUILTIN_SCENARIOS)
-        raise ScenarioError(
-            "scenario", "", f"{key!r} is neither a built-in scenario ({known}) nor a file"
-        )
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
-    return str(path), read_toml(text, str(path), ScenarioError)
+    if not Path(name_or_path).is_file():
+        raise _unknown(key)
+    return key, read_toml_file(name_or_path, ScenarioError)[1]
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

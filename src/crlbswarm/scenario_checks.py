@@ -1,6 +1,6 @@
 """The numerical checks of a scenario: what validates field by field but cannot fly.
 
-:func:`check_scene` runs when a :class:`~crlbswarm.scenario.Scenario` is built, after every
+:func:`check_scenario` runs when a :class:`~crlbswarm.scenario.Scenario` is built, after every
 field has passed its own check: the target and the starts must lie outside the obstacles,
 the graph must be connected, the gains must be inside the stability bounds of the linear
 laws and the step-size limits of the nonlinear ones, the target's slot formation must fit
@@ -11,7 +11,7 @@ Each failure raises :class:`~crlbswarm.errors.FieldError` naming the dotted fiel
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,15 +22,15 @@ from .obstacles import Obstacles, obstacle_clearance
 if TYPE_CHECKING:
     from .scenario import Scenario
 
-__all__ = ["check_scene"]
+__all__ = ["check_scenario"]
 
 
-def check_scene(self: Scenario) -> None:
+def check_scenario(scenario: Scenario) -> None:
     """Check a scenario whose fields are each valid (called by its model validator).
 
     Parameters
     ----------
-    self : Scenario
+    scenario : Scenario
         The scenario.
 
     Raises
@@ -38,51 +38,51 @@ def check_scene(self: Scenario) -> None:
     FieldError
         For the first problem found, naming the dotted field.
     """
-    obstacles = self.obstacle_set
-    _check_outside(obstacles, np.asarray(self.target)[None], "target")
-    if self.uavs.start is not None:
-        _check_outside(obstacles, np.asarray(self.uavs.start), "uavs.start")
-    elif self.uavs.start_region is not None:  # (exactly one of the two is set)
-        (x0, x1), (y0, y1) = self.uavs.start_region
-        for i, ob in enumerate(self.obstacles):
-            if _region_overlaps(ob.model_dump(), x0, x1, y0, y1):
+    obstacles = scenario.obstacle_set
+    _check_outside(obstacles, np.asarray(scenario.target)[None], "target")
+    if scenario.uavs.start is not None:
+        _check_outside(obstacles, np.asarray(scenario.uavs.start), "uavs.start")
+    elif scenario.uavs.start_region is not None:  # (exactly one of the two is set)
+        (x0, x1), (y0, y1) = scenario.uavs.start_region
+        for i, ob in enumerate(scenario.obstacles):
+            if ob.overlaps_box(x0, x1, y0, y1):
                 raise FieldError(
                     "uavs.start_region", f"overlaps obstacles[{i}]; starts could be inside it"
                 )
     try:
-        adjacency = self.adjacency
+        adjacency = scenario.adjacency
     except FieldError as exc:
         field = exc.field if exc.field.startswith("graph") else "graph"
         raise FieldError(field, exc.reason) from exc
-    _check_gains(self, adjacency)
-    _check_estimation(self, obstacles)
-    clearance = obstacle_clearance(self.formation, obstacles) if obstacles.count else None
-    if clearance is not None and np.any(clearance <= self.control.safety_radius):
+    _check_gains(scenario, adjacency)
+    _check_estimation(scenario, obstacles)
+    clearance = obstacle_clearance(scenario.formation, obstacles) if obstacles.count else None
+    if clearance is not None and np.any(clearance <= scenario.control.safety_radius):
         m = int(np.argmin(clearance))
         raise FieldError(
             "target",
             f"the slot of UAV {m} in F* over the target is {clearance[m]:.3g} m from an "
-            f"obstacle, within control.safety_radius = {self.control.safety_radius:g} m: "
+            f"obstacle, within control.safety_radius = {scenario.control.safety_radius:g} m: "
             "the formation could never settle there",
         )
 
 
-def _check_estimation(self: Scenario, obstacles: Obstacles) -> None:
+def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:
     """Sensing-in-the-loop and target-motion settings that cannot work."""
-    est, motion, step = self.estimation, self.target_motion, self.time.step
-    if est.enabled and est.measure_every > self.time.steps:
+    est, motion, step = scenario.estimation, scenario.target_motion, scenario.time.step
+    if est.enabled and est.measure_every > scenario.time.steps:
         raise FieldError(
             "estimation.measure_every",
-            f"{est.measure_every} exceeds the {self.time.steps} steps of the mission",
+            f"{est.measure_every} exceeds the {scenario.time.steps} steps of the mission",
         )
     if not motion.moving:
         return
     speed = math.hypot(*motion.velocity)
-    if speed >= self.control.cruise_speed:
+    if speed >= scenario.control.cruise_speed:
         raise FieldError(
             "target_motion.velocity",
             f"the target's speed {speed:g} m/s must be below control.cruise_speed = "
-            f"{self.control.cruise_speed:g} m/s, or the formation cannot follow it",
+            f"{scenario.control.cruise_speed:g} m/s, or the formation cannot follow it",
         )
     if motion.model == "turning" and abs(motion.turn_rate) * step >= 0.5 * math.pi:
         raise FieldError(
@@ -93,8 +93,8 @@ def _check_estimation(self: Scenario, obstacles: Obstacles) -> None:
         from .tracking import target_trajectories
 
         path = target_trajectories(
-            np.asarray(self.target, dtype=float), np.asarray(motion.velocity, dtype=float),
-            motion.model, step, self.time.steps, [np.random.default_rng(0)],
+            np.asarray(scenario.target, dtype=float), np.asarray(motion.velocity, dtype=float),
+            motion.model, step, scenario.time.steps, [np.random.default_rng(0)],
             motion.turn_rate, 0.0,
         )[0, :, :2]  # fmt: skip
         inside = np.flatnonzero(obstacle_clearance(path, obstacles) <= 0)
@@ -105,9 +105,9 @@ def _check_estimation(self: Scenario, obstacles: Obstacles) -> None:
             )
 
 
-def _check_gains(self: Scenario, adjacency: Adjacency) -> None:
+def _check_gains(scenario: Scenario, adjacency: Adjacency) -> None:
     """Stability bounds of the linear laws and the step-size limits of the nonlinear ones."""
-    ctl, step = self.control, self.time.step
+    ctl, step = scenario.control, scenario.time.step
     # A relative allowance: at the limit itself the error does not decay, and the
     # computed eigenvalue may fall a rounding error short of it.
     eps_max = formation_step_limit(adjacency) * (1.0 - 1e-12)
@@ -153,12 +153,3 @@ def _check_outside(obstacles: Obstacles, points: np.ndarray, field: str) -> None
     if inside.size:
         where = f"{field}[{inside[0]}]" if points.shape[0] > 1 else field
         raise FieldError(where, "lies inside an obstacle")
-
-
-def _region_overlaps(ob: dict[str, Any], x0: float, x1: float, y0: float, y1: float) -> bool:
-    """Whether an obstacle (as its TOML table) overlaps the box [x0, x1] x [y0, y1]."""
-    if ob["type"] == "rectangle":
-        return ob["x"][0] <= x1 and x0 <= ob["x"][1] and ob["y"][0] <= y1 and y0 <= ob["y"][1]
-    cx = min(max(ob["center"][0], x0), x1)
-    cy = min(max(ob["center"][1], y0), y1)
-    return math.hypot(cx - ob["center"][0], cy - ob["center"][1]) <= ob["radius"]

@@ -57,7 +57,7 @@ MAX_SEED = _v.MAX_SEED
 MEMORY_FRACTION = 0.5
 
 
-def _streams(seed: int, count: int = 2) -> list[np.random.Generator]:
+def _streams(seed: int, count: int) -> list[np.random.Generator]:
     """The run's independent streams: start, disturbance, ranges, target motion (in that
     order; spawning more children leaves the first ones unchanged)."""
     return [np.random.default_rng(ss) for ss in np.random.SeedSequence(seed).spawn(count)]
@@ -85,7 +85,7 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
     ndarray, shape (M, 2)
         Start positions, m.
     """
-    return _start(scenario, _streams(seed)[0])
+    return _start(scenario, _streams(_v.seed(seed, "seed"), 1)[0])
 
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
@@ -114,7 +114,7 @@ def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     total = series + trajectories
     limit = _physical_memory()
     if limit is not None and total > MEMORY_FRACTION * limit:
-        hint = "keep_trajectories=False (--no-trajectories) or fewer" if keep else "fewer"
+        hint = "keep_trajectories=False or fewer" if keep else "fewer"
         raise FieldError(
             "seeds",
             f"{n_runs} runs of {k_steps} steps need about {total / 2**30:.1f} GiB, more "

@@ -97,8 +97,8 @@ def motion_matrices(
     if model == "constant_velocity":
         f[0, 2] = f[1, 3] = dt
     elif model == "turning":
-        w = float(turn_rate)
-        if not (math.isfinite(w) and w != 0.0):
+        w = _v.scalar(turn_rate, "turn_rate")
+        if w == 0.0:
             raise FieldError(
                 "turn_rate", f"the turning model needs a finite non-zero rate, got {turn_rate!r}"
             )
