@@ -185,13 +185,56 @@ def test_graph_kinds_are_declared_once():
             assert option in GraphConfig.model_fields, (kind, option)
 
 
-def test_scenario_docs_list_every_field_with_its_default():
-    """docs/scenarios.md documents each field of each table under its own name."""
+def _doc_table(text: str, section: str) -> dict[str, list[str]]:
+    """The rows of the table under the heading of ``[section]`` in docs/scenarios.md, by
+    field name: the cells, stripped of backticks."""
+    start = text.index(f"### `[{section}]`")
+    end = text.find("\n#", start + 1)
+    rows = {}
+    for line in text[start : end if end > 0 else None].splitlines():
+        cells = [c.strip().strip("`") for c in line.strip().strip("|").split("|")]
+        if line.startswith("| `") and len(cells) > 1:
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+def _shows(cells: list[str], default: object) -> bool:
+    """Whether one of the cells states ``default``."""
+    for cell in cells:
+        if isinstance(default, bool):
+            if cell.lower() == str(default).lower():
+                return True
+            continue
+        if isinstance(default, str) and cell.strip('"') == default:
+            return True
+        try:
+            if isinstance(default, int | float) and float(cell) == float(default):
+                return True
+        except ValueError:
+            pass
+        if isinstance(default, list) and cell.replace(" ", "") == str(default).replace(" ", ""):
+            return True
+    return False
+
+
+@pytest.mark.parametrize(
+    "section",
+    ["uavs", "time", "radar", "control", "disturbance", "graph", "eta", "estimation",
+     "target_motion"],
+)  # fmt: skip
+def test_scenario_docs_list_every_field_with_its_default(section):
+    """docs/scenarios.md has a row for each field of each table, stating its default."""
+    from pydantic_core import PydanticUndefined
+
     text = (ROOT / "docs" / "scenarios.md").read_text(encoding="utf-8")
-    for section in ("control", "eta", "radar"):
-        model = type(getattr(load_scenario("paper"), section))
-        for name in model.model_fields:
-            assert f"`{name}`" in text, f"[{section}] {name} is not documented"
+    rows = _doc_table(text, section)
+    model = Scenario.model_fields[section].annotation
+    for name, info in model.model_fields.items():
+        assert name in rows, f"[{section}] {name} is not documented"
+        default = info.default
+        if default is None or default is PydanticUndefined:
+            continue
+        assert _shows(rows[name], default), f"[{section}] {name}: default {default!r} not shown"
 
 
 # -- built-in scenarios as packaged TOML -----------------------------------------------------
@@ -215,3 +258,43 @@ def test_builtin_data_is_a_fresh_copy_each_time():
     a["altitude"] = -1.0
     assert BUILTIN_SCENARIOS["paper"]["altitude"] == 20.0
     assert len(BUILTIN_SCENARIOS) == len(list(BUILTIN_SCENARIOS)) >= 3
+
+
+def _package_imports(tree: ast.Module) -> set[str]:
+    """The package modules a module imports (imports for type checking only left out)."""
+    typing_only = {
+        id(n)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"
+        for n in ast.walk(node)
+    }
+    out = set()
+    for node in ast.walk(tree):
+        if id(node) in typing_only or not isinstance(node, ast.ImportFrom) or node.level != 1:
+            continue
+        if node.module:
+            out.add(node.module.split(".")[0])
+        else:
+            out |= {a.name for a in node.names if a.name != "__version__"}
+    return out
+
+
+def test_modules_import_only_from_lower_floors():
+    """The floors of docs/architecture.md: every module is listed, and imports only from
+    modules on lower floors (so the table is the true map of the package)."""
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    floors = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and cells[0].isdigit():
+            floors[cells[1].strip("`")] = int(cells[0])
+    modules = _modules()
+    assert set(floors) == set(modules) - {"__init__"}
+    upward = [
+        f"{name} (floor {floors[name]}) imports {dep} (floor {floors[dep]})"
+        for name, tree in modules.items()
+        if name != "__init__"
+        for dep in _package_imports(tree)
+        if floors[dep] >= floors[name]
+    ]
+    assert upward == []

@@ -645,16 +645,15 @@ def eta_target(
     The paper says only that :math:`\eta_k` "is adaptively reduced when the formation centre
     approaches spatial bottlenecks". crlbswarm samples ``rule.samples`` points on the segment
     from ``radius`` behind the formation centre :math:`\mathbf c` to ``rule.lookahead``
-    ahead of it,
-    toward the target. At each point it takes the largest obstacle clearance across the path
-    within :math:`\pm R` (9 points, spacing :math:`R/4`): the half-width of the corridor's
-    cross-section there, since the repulsion and the leader's steering centre the formation
-    in a passage (the sampling errs on the safe side: it can miss the widest point by up to
-    :math:`R/8`, so the formation shrinks slightly more than needed). The
-    smallest of these along the path is the free half-width :math:`w` of the corridor the
-    formation is about to use, and the rule asks for the scale at which a formation of
-    nominal radius :math:`R` keeps the margin (``rule.margin``, or the safety radius)
-    from every obstacle:
+    ahead of it, toward the target. At each point it takes the largest obstacle clearance
+    across the path within :math:`\pm R` (``LATERAL_SAMPLES`` = 9 points, spacing
+    :math:`R/4`): the half-width of the corridor's cross-section there, since the repulsion
+    and the leader's steering centre the formation in a passage (the sampling errs on the
+    safe side: it can miss the widest point by up to :math:`R/8`, so the formation shrinks
+    slightly more than needed). The smallest of these along the path is the free half-width
+    :math:`w` of the corridor the formation is about to use, and the rule asks for the scale
+    at which a formation of nominal radius :math:`R` keeps the margin (``rule.margin``, or
+    the safety radius) from every obstacle:
 
     .. math:: \eta^\text{goal} = \operatorname{clip}\bigl((w - \text{margin})/R,\;
               \eta_\min,\; 1\bigr).

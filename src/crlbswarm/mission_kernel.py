@@ -63,7 +63,7 @@ __all__ = [
     "sense_target",
 ]
 
-#: Positions beyond this distance from the origin (m) count as a diverged run.
+#: A run whose UAV has a coordinate (x or y) beyond this magnitude (m), or NaN, diverged.
 DIVERGENCE_LIMIT = 1.0e6
 
 #: Gauss-Newton iterations of the filter's range update.

@@ -9,8 +9,9 @@ radar and benchmark parameters, seeds and summaries). Everything is computed bef
 first file is written, so a failure leaves the folder untouched, and every file is written
 atomically (:mod:`crlbswarm.output`).
 
-The paper scenario and the paper's laws are used as printed (with the corrections of
-``docs/paper-defaults-and-errata.md``); nothing beyond the paper changes these figures.
+Figs. 2-4 use the paper's scenario and laws as printed, with the corrections and the open
+choices of ``docs/paper-defaults-and-errata.md`` (the leader's guidance and steering, the
+eta rule); the estimator, sensing and tracking figures go beyond the paper.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ itself to a folder (:meth:`MissionResult.save`) that :func:`load_results` reads 
 result with the same arrays and metrics.
 
 Adding an output format: write a method beside :meth:`MissionResult.save` (or a function
-taking a result) and list its file in ``docs/scenarios.md``.
+taking a result) and list its file in ``docs/cli.md``.
 """
 
 from __future__ import annotations

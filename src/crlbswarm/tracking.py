@@ -351,7 +351,8 @@ def update(x, P, uav_xy, ranges, altitude, snr_constant, n_iter):
     snr_constant : float
         :math:`A` of the radar (:attr:`crlbswarm.Radar.snr_constant`).
     n_iter : int
-        Gauss-Newton iterations (the mission kernel uses 3).
+        Gauss-Newton iterations (the mission kernel uses
+        :data:`crlbswarm.mission_kernel.FILTER_ITERATIONS`).
 
     Returns
     -------
