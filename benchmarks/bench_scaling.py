@@ -98,7 +98,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     q = [tuple(p) for p in rng.uniform(-20, 20, (n0, 2))]
     v = [(0.0, 0.0)] * n0
-    delta = [tuple(p) for p in sc.formation]
+    delta = [tuple(p) for p in sc.slots]
     adj = sc.adjacency
     nbrs = [adj.indices[adj.indptr[m] : adj.indptr[m + 1]].tolist() for m in range(n0)]
     circles = sc.obstacle_set.circles.tolist()

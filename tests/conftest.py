@@ -223,3 +223,12 @@ def readonly(value: object) -> np.ndarray:
 def make_readonly():
     """Factory of read-only float arrays, to check that no function writes to its inputs."""
     return readonly
+
+
+#: The tables that switch every layer beyond the paper off (safety filter, route planner,
+#: optimal slot assignment): a scenario with them flies the paper's own laws.
+PAPER_LAWS = {
+    "safety": {"enabled": False},
+    "guidance": {"planner": False},
+    "formation": {"assignment": "index"},
+}

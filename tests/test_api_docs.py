@@ -30,6 +30,8 @@ MODULES = [
     "crlbswarm.graphs",
     "crlbswarm.obstacles",
     "crlbswarm.spatial",
+    "crlbswarm.safety",
+    "crlbswarm.planning",
     "crlbswarm.control",
     "crlbswarm.scenario",
     "crlbswarm.scenario_checks",

@@ -15,8 +15,7 @@ import re
 import networkx as nx
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from crlbswarm import (
     GRAPH_KINDS,

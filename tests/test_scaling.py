@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from crlbswarm import Scenario, simulate
 from crlbswarm.spatial import SEPARATION_BRUTE_FORCE_MAX, min_separation

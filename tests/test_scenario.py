@@ -16,10 +16,10 @@ import re
 import numpy as np
 import pytest
 import tomlkit
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from pydantic import ValidationError
 
+from conftest import PAPER_LAWS
 from crlbswarm import (
     BUILTIN_SCENARIOS,
     Scenario,
@@ -89,7 +89,7 @@ def test_paper_derived_objects(ref):
     r_star = 20.0 / math.tan(phi)
     angles = 2.0 * math.pi * np.arange(6) / 6
     expected = np.array([80.0, 90.0]) + r_star * np.stack([np.cos(angles), np.sin(angles)], -1)
-    np.testing.assert_allclose(sc.formation, expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sc.slots, expected, rtol=0, atol=1e-9)
 
 
 def test_paper_scenario_rotation_and_leader():
@@ -97,10 +97,10 @@ def test_paper_scenario_rotation_and_leader():
     d = paper_dict()
     d["uavs"]["rotation_deg"] = 30.0
     sc = Scenario.from_dict(d)
-    base = load_scenario("paper").formation - [80.0, 90.0]
+    base = load_scenario("paper").slots - [80.0, 90.0]
     c, s = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
     rotated = base @ np.array([[c, s], [-s, c]])
-    np.testing.assert_allclose(sc.formation - [80.0, 90.0], rotated, atol=1e-12)
+    np.testing.assert_allclose(sc.slots - [80.0, 90.0], rotated, atol=1e-12)
 
 
 def test_scenario_is_frozen():
@@ -423,7 +423,7 @@ def test_toml_round_trip(make):
     assert back == sc
     assert back.model_dump() == sc.model_dump()
     assert back.to_toml() == text
-    np.testing.assert_array_equal(back.formation, sc.formation)
+    np.testing.assert_array_equal(back.slots, sc.slots)
 
 
 def test_toml_is_commented():
@@ -473,6 +473,7 @@ def test_toml_round_trip_any_floats(altitude, target, rotation, sigma, epsilon, 
         "time": {"step": step, "duration": step * steps},
         "disturbance": {"sigma": sigma},
         "control": {"epsilon": epsilon},
+        **PAPER_LAWS,
     }
     sc = Scenario.from_dict(d)
     back = Scenario.from_toml(sc.to_toml())

@@ -22,8 +22,7 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from crlbswarm import Radar
 from crlbswarm.tracking import (

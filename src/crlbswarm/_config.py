@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import re
 import sys
+import textwrap
 import types
 import typing
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from .errors import ConfigError, FieldError
 
@@ -26,9 +27,21 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib  # type: ignore[import-not-found, no-redef, unused-ignore]
 
-__all__ = ["ConfigModel", "describe", "model_to_toml", "read_toml", "read_toml_file", "validate"]
+__all__ = [
+    "ConfigModel",
+    "PositiveFloat",
+    "describe",
+    "model_to_toml",
+    "read_toml",
+    "read_toml_file",
+    "validate",
+]
 
 Model = TypeVar("Model", bound=BaseModel)
+
+
+#: A finite number > 0 (the type of most physical parameters of the configuration models).
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class ConfigModel(BaseModel):
@@ -204,7 +217,8 @@ def _parameters_section(model: type[BaseModel]) -> str:
             description = description.replace(char, "\\" + char)
         if re.match(r"[a-z]+[ ,]", description):  # a sentence, not a field or code name
             description = description[0].upper() + description[1:]
-        lines.append(f"        {description}" + ("" if description.endswith(".") else "."))
+        text = description + ("" if description.endswith(".") else ".")
+        lines += textwrap.wrap(text, 88, initial_indent=" " * 8, subsequent_indent=" " * 8)
     return "\n".join(lines) + "\n"
 
 

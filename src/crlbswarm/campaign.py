@@ -39,8 +39,7 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field, model_validator
 
-from . import __version__
-from . import _validation as _v
+from . import __version__, _validation as _v
 from ._config import ConfigModel, read_toml, read_toml_file, validate
 from .errors import CampaignError, FieldError, ScenarioError
 from .output import atomic_path, write_text

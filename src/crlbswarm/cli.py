@@ -287,6 +287,11 @@ def _add_simulate(sub: Any) -> None:
         action="store_true",
         help="do not keep positions and velocities (metrics and time series only)",
     )
+    simulate.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit with status 1 when a run does not end converged (the files are written)",
+    )
 
 
 def _add_sweep(sub: Any) -> None:
@@ -409,14 +414,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from . import _validation as _v
     from .output import check_output_folder
     from .scenario import load_scenario
+    from .scenario_checks import preflight
 
     # Validate everything before running anything; create the folder only after the run.
     scenario = load_scenario(args.scenario)
     first, runs = _v.seed_range(args.seed, args.runs, "seed", "seeds")
     check_output_folder(args.out, "folder")
+    for line in preflight(scenario):
+        print(f"crlbswarm: warning: {line}", file=sys.stderr)
 
     from tqdm import tqdm
 
+    from .results import outcome_report
     from .simulation import simulate
 
     with tqdm(total=runs, unit="run", disable=None, file=sys.stderr) as bar:
@@ -428,6 +437,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         )
     for path in result.save(args.out):
         print(f"wrote {path}")
+    lines = outcome_report(result)
+    warning = lines.pop() if lines[-1].startswith("warning:") else None
+    print("\n".join(lines))
+    if warning is not None:
+        print(f"crlbswarm: {warning}", file=sys.stderr)
+        return 1 if args.strict else 0
     return 0
 
 

@@ -43,18 +43,18 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
-from pydantic import Field
+from pydantic import Field, PlainValidator
 
 from . import _validation as _v
-from ._config import ConfigModel
+from ._config import ConfigModel, PositiveFloat
 from .errors import FieldError
 from .geometry import clip_norm
-from .graphs import Adjacency
+from .graphs import Adjacency, auto_consensus_step, auto_formation_step
 from .obstacles import Obstacles, check_obstacles, clearance_at, repulsion_at
 
 __all__ = [
@@ -63,6 +63,8 @@ __all__ = [
     "consensus_step",
     "consensus_update",
     "control_cost",
+    "corridor_width",
+    "eta_from_width",
     "eta_goal",
     "eta_rate_limit",
     "eta_target",
@@ -74,9 +76,25 @@ __all__ = [
     "motion_model",
     "reference_velocity",
     "repulsion",
+    "route_eta_goal",
+    "route_point",
+    "travel_weight",
 ]
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+def _positive_or_auto(value: object) -> float | str:
+    if value == "auto":
+        return "auto"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError('must be a number > 0 or "auto"')
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError('must be a finite number > 0 or "auto"')
+    return float(value)
+
+
+#: A gain that may be ``"auto"`` (resolved from the graph's spectrum by
+#: :meth:`ControlGains.resolve`).
+AutoGain = Annotated[float | Literal["auto"], PlainValidator(_positive_or_auto)]
 
 
 # ---------------------------------------------------------------------------------------
@@ -92,11 +110,15 @@ class ControlGains(ConfigModel):
     scenario file are generated from those declarations.
     """
 
-    epsilon: PositiveFloat = Field(
-        0.01, description="formation gain epsilon per step, eqs. (16), (19) (paper: 0.01)"
+    epsilon: AutoGain = Field(
+        "auto",
+        description="formation gain epsilon per step, eqs. (16), (19) (paper: 0.01); "
+        '"auto": 1/lambda_max(L), the fastest step without oscillation',
     )
-    gamma: PositiveFloat = Field(
-        0.25, description="consensus step gamma, eq. (14) (< 1/max degree; ring: < 0.5)"
+    gamma: AutoGain = Field(
+        "auto",
+        description="consensus step gamma, eq. (14), < 1/max degree (paper scenario: 0.25); "
+        '"auto": min(1/lambda_max(L_ff), 0.99/max degree)',
     )
     guidance_gain: PositiveFloat = Field(0.5, description="leader guidance gain k_g, 1/s")
     cruise_speed: PositiveFloat = Field(2.0, description="leader cruise speed v_c, m/s")
@@ -109,6 +131,29 @@ class ControlGains(ConfigModel):
         True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
     )
 
+    def resolve(self, adjacency: Adjacency, leader: int) -> ControlGains:
+        """The gains with ``"auto"`` replaced by the values the graph's spectrum gives.
+
+        Parameters
+        ----------
+        adjacency : Adjacency
+            The communication graph.
+        leader : int
+            Index of the leader.
+
+        Returns
+        -------
+        ControlGains
+            The same gains, ``epsilon`` from :func:`crlbswarm.graphs.auto_formation_step`
+            and ``gamma`` from :func:`crlbswarm.graphs.auto_consensus_step` where ``"auto"``.
+        """
+        update: dict[str, float] = {}
+        if self.epsilon == "auto":
+            update["epsilon"] = auto_formation_step(adjacency)
+        if self.gamma == "auto":
+            update["gamma"] = auto_consensus_step(adjacency, leader)
+        return self.model_copy(update=update) if update else self
+
     def kernel_tuple(self) -> Any:
         """The gains as a typed named tuple for the compiled kernels (same field names).
 
@@ -116,7 +161,17 @@ class ControlGains(ConfigModel):
         -------
         ControlGainsTuple
             A :func:`collections.namedtuple` of the fields, in declaration order.
+
+        Raises
+        ------
+        FieldError
+            If a gain is still ``"auto"`` (call :meth:`resolve` first).
         """
+        for name in ("epsilon", "gamma"):
+            if getattr(self, name) == "auto":
+                raise FieldError(
+                    f"gains.{name}", '"auto" must be resolved on a graph first (gains.resolve)'
+                )
         return ControlGainsTuple(**self.model_dump())
 
 
@@ -191,6 +246,12 @@ def _check_rule(rule: object) -> EtaRule:
 #: Points sampled across the path (odd, so the path itself is one) by the eta rule.
 LATERAL_SAMPLES = 9
 
+#: The eta rule near the target, in units of the formation radius R: within HOVER_INNER R
+#: of the target the goal is 1 (the validated slots of F* are clear), beyond HOVER_OUTER R
+#: it is the free-width rule, and in between a smooth blend, so the rule is continuous.
+HOVER_INNER = 0.25
+HOVER_OUTER = 1.0
+
 
 # ---------------------------------------------------------------------------------------
 # Compiled laws on one formation (called by the public functions and the mission kernel)
@@ -257,10 +318,46 @@ def reference_velocity(
     return clip_norm(wx, wy, cruise)
 
 
+@njit(cache=True, inline="always")
+def corridor_width(px, py, hx, hy, radius, rects, circles):
+    """Half-width of the corridor's cross-section at (px, py), travelling along (hx, hy):
+    the best clearance the formation's centre could have within +-radius across the path
+    (the repulsion and the steering centre the formation), on ``LATERAL_SAMPLES`` points."""
+    best = -math.inf
+    for j in range(LATERAL_SAMPLES):
+        o = radius * (2.0 * j / (LATERAL_SAMPLES - 1) - 1.0)
+        best = max(best, clearance_at(px - o * hy, py + o * hx, rects, circles))
+    return best
+
+
+@njit(cache=True, inline="always")
+def travel_weight(dist, radius):
+    """1 while the formation travels, 0 while it hovers over the target (``dist`` away): a
+    smoothstep from ``HOVER_INNER`` to ``HOVER_OUTER`` formation radii. The travelling
+    layers (the eta rule, the leader's steering) fade out with it over the target."""
+    t = (dist - HOVER_INNER * radius) / ((HOVER_OUTER - HOVER_INNER) * radius)
+    if t >= 1.0:
+        return 1.0
+    return 0.0 if t <= 0.0 else t * t * (3.0 - 2.0 * t)
+
+
+@njit(cache=True, inline="always")
+def eta_from_width(width, margin, radius, eta_min, dist):
+    """The scale at which a formation of radius ``radius`` keeps ``margin`` in a corridor of
+    half-width ``width``, in [eta_min, 1]; blended to 1 near the target (``dist`` away) by
+    :func:`travel_weight`, so exactly 1 while hovering."""
+    goal = min(1.0, max(eta_min, (width - margin) / radius))
+    w = travel_weight(dist, radius)
+    if w == 1.0:
+        return goal
+    return goal + (1.0 - goal) * (1.0 - w)
+
+
 @njit(cache=True)
 def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_samples, eta_min):
-    """Free half-width of the corridor ahead of the formation -> scale in [eta_min, 1]
-    (:func:`eta_target`). Compiled kernel, no checks."""
+    """Free half-width of the corridor ahead of the formation on the straight line to the
+    target -> scale in [eta_min, 1], blended to 1 near the target (:func:`eta_target`).
+    Compiled kernel, no checks."""
     if rects.shape[0] + circles.shape[0] == 0:
         return 1.0
     hx = sx - cx
@@ -281,17 +378,59 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sample
         py = cy + t * hy
         if clearance_at(px, py, rects, circles) >= enough:
             continue  # the lateral best is at least as large: no effect on the result
-        # Half-width of the corridor's cross-section: the best clearance the centre could
-        # have within +-radius of the straight path (the repulsion centres the formation).
-        best = -math.inf
-        for j in range(LATERAL_SAMPLES):
-            o = radius * (2.0 * j / (LATERAL_SAMPLES - 1) - 1.0)
-            best = max(best, clearance_at(px - o * hy, py + o * hx, rects, circles))
-        width = min(width, best)
+        width = min(width, corridor_width(px, py, hx, hy, radius, rects, circles))
         if width <= floor:
             break  # clipped at eta_min whatever the remaining samples say
-    scale = (width - margin) / radius
-    return min(1.0, max(eta_min, scale))
+    return eta_from_width(width, margin, radius, eta_min, dist)
+
+
+@njit(cache=True)
+def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, margin,
+                   lookahead, n_samples, eta_min):  # fmt: skip
+    """:func:`eta_goal` along a planned route instead of the straight line: from the centre
+    through ``nodes[k]``, ``nodes[next_node[k]]``, ... to the last node (the route's goal);
+    with ``k < 0`` (the target in sight) the straight line to it. Compiled kernel."""
+    if k < 0 or rects.shape[0] + circles.shape[0] == 0:
+        return eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead,
+                        n_samples, eta_min)  # fmt: skip
+    length = math.hypot(nodes[k, 0] - cx, nodes[k, 1] - cy)  # the route's length ahead
+    j = k
+    while next_node[j] >= 0 and length < lookahead:
+        i = next_node[j]
+        length += math.hypot(nodes[i, 0] - nodes[j, 0], nodes[i, 1] - nodes[j, 1])
+        j = i
+    ahead = min(lookahead, length)
+    width = math.inf
+    enough = radius + margin
+    floor = margin + eta_min * radius
+    for s in range(n_samples):
+        t = -radius + (ahead + radius) * s / (n_samples - 1)
+        px, py, hx, hy = route_point(cx, cy, k, nodes, next_node, t)
+        if clearance_at(px, py, rects, circles) >= enough:
+            continue
+        width = min(width, corridor_width(px, py, hx, hy, radius, rects, circles))
+        if width <= floor:
+            break
+    return eta_from_width(width, margin, radius, eta_min, math.hypot(sx - cx, sy - cy))
+
+
+@njit(cache=True)
+def route_point(cx, cy, k, nodes, next_node, t):
+    """The point at arc length ``t`` along the route from (cx, cy) through ``nodes[k]`` and
+    its successors (``t < 0``: behind, on the first leg's line), and the unit direction of
+    the leg there."""
+    ax, ay, j = cx, cy, k
+    while True:
+        bx, by = nodes[j, 0], nodes[j, 1]
+        leg = math.hypot(bx - ax, by - ay)
+        if leg > 0.0:
+            hx, hy = (bx - ax) / leg, (by - ay) / leg
+            if t <= leg or next_node[j] < 0:
+                return ax + t * hx, ay + t * hy, hx, hy
+            t -= leg
+        if next_node[j] < 0:
+            return bx, by, 1.0, 0.0
+        ax, ay, j = bx, by, next_node[j]
 
 
 @njit(cache=True, inline="always")
@@ -443,7 +582,7 @@ def consensus_step(
         Index of the leader.
     gains : ControlGains, optional
         Its ``gamma`` is the consensus step (stable iff below
-        :func:`crlbswarm.consensus_step_limit`).
+        :func:`crlbswarm.consensus_step_limit`; ``"auto"`` is resolved on ``adjacency``).
 
     Returns
     -------
@@ -453,7 +592,7 @@ def consensus_step(
     v = _formation_arrays(velocities, "velocities", adjacency)
     ref = _v.point(v_ref, "v_ref")
     lead = _check_leader(leader, adjacency.n_nodes)
-    gamma = _check_gains(gains).gamma
+    gamma = float(_check_gains(gains).resolve(adjacency, lead).gamma)
     shape = _v.broadcast("v_ref", v.shape[:-2], ref.shape[:-1])
     vb = _flat(v, shape, v.shape[-2:])
     rb = _flat(ref, shape, (2,))
@@ -571,7 +710,7 @@ def formation_input(
         Communication graph.
     gains : ControlGains, optional
         Its ``epsilon`` is the per-step gain :math:`\varepsilon` (stable iff below
-        :func:`crlbswarm.formation_step_limit`).
+        :func:`crlbswarm.formation_step_limit`; ``"auto"`` is resolved on ``adjacency``).
 
     Returns
     -------
@@ -581,7 +720,7 @@ def formation_input(
     q = _formation_arrays(positions, "positions", adjacency)
     d = _slot_offsets(delta, adjacency)
     e = _scale(eta, "eta")
-    eps = _check_gains(gains).epsilon
+    eps = float(_check_gains(gains).resolve(adjacency, 0).epsilon)
     shape = _v.broadcast("eta", q.shape[:-2], e.shape)
     qb = _flat(q, shape, q.shape[-2:])
     eb = _flat(e, shape, ())
@@ -660,7 +799,15 @@ def eta_target(
 
     Looking behind keeps :math:`\eta` low until the rear of the formation has cleared the
     bottleneck; looking ahead lets the shape (time constant :math:`1/(\varepsilon\lambda_2)`)
-    shrink before the centre arrives. The result is continuous in :math:`\mathbf c`;
+    shrink before the centre arrives. At the target the direction of travel is undefined, so
+    the goal is blended to 1 there:
+
+    .. math:: \eta^\text{goal} \leftarrow \eta^\text{goal} + (1 - \eta^\text{goal})\,
+              \bigl(1 - w(\lVert\mathbf c - \mathbf s\rVert)\bigr),
+
+    with :math:`w` the smoothstep from 0 at ``HOVER_INNER`` :math:`R` to 1 at ``HOVER_OUTER``
+    :math:`R`. The result is continuous in :math:`\mathbf c` everywhere, and exactly 1 while
+    the formation hovers over the target (whose slots the scenario checks are clear);
     :func:`eta_update` rate-limits it.
 
     Parameters

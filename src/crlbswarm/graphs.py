@@ -22,6 +22,7 @@ Stability of the two discrete-time linear laws (not in the paper; standard resul
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -40,9 +41,12 @@ if TYPE_CHECKING:  # networkx and scipy.sparse are imported when a graph is buil
 __all__ = [
     "GRAPH_KINDS",
     "Adjacency",
+    "auto_consensus_step",
+    "auto_formation_step",
     "communication_graph",
     "consensus_step_limit",
     "formation_step_limit",
+    "settling_steps",
 ]
 
 #: Graph kinds understood by :func:`communication_graph`, each with the options it takes:
@@ -242,6 +246,40 @@ def _largest_eigenvalue(matrix: sp.csr_array) -> float:
     return 2.0 * float(matrix.diagonal().max())
 
 
+def settling_steps(adjacency: Adjacency, leader: int, epsilon: float, gamma: float) -> float:
+    r"""Steps for the slower of the two linear laws to shrink its error a hundredfold.
+
+    The shape error decays as :math:`\max_{i \ge 2}|1 - \varepsilon\lambda_i(L)|` per step
+    and the followers' velocity error as :math:`\max_i|1 - \gamma\lambda_i(L_{ff})|`; the
+    slower rate :math:`\rho` takes :math:`\ln 100 / (-\ln\rho)` steps. Exact eigenvalues up
+    to ``EXACT_EIGEN_MAX_NODES`` UAVs; above, ``nan`` (not estimated).
+
+    Parameters
+    ----------
+    adjacency : Adjacency
+        The communication graph.
+    leader : int
+        Index of the leader.
+    epsilon : float
+        Formation gain per step.
+    gamma : float
+        Consensus step.
+
+    Returns
+    -------
+    float
+        Steps (``inf`` if a law does not converge).
+    """
+    if adjacency.n_nodes > EXACT_EIGEN_MAX_NODES:
+        return math.nan
+    lap = adjacency.laplacian().toarray()
+    keep = np.setdiff1d(np.arange(adjacency.n_nodes), [leader])
+    shape = np.linalg.eigvalsh(lap)[1:]
+    follow = np.linalg.eigvalsh(lap[np.ix_(keep, keep)])
+    rho = max(np.max(np.abs(1.0 - epsilon * shape)), np.max(np.abs(1.0 - gamma * follow)))
+    return math.inf if rho >= 1.0 else math.log(100.0) / -math.log(rho)
+
+
 def formation_step_limit(adjacency: Adjacency) -> float:
     r"""Largest stable formation gain, :math:`2/\lambda_{\max}(L)`.
 
@@ -261,6 +299,52 @@ def formation_step_limit(adjacency: Adjacency) -> float:
         graphs of up to ``EXACT_EIGEN_MAX_NODES`` UAVs).
     """
     return 2.0 / _largest_eigenvalue(adjacency.laplacian())
+
+
+def auto_formation_step(adjacency: Adjacency) -> float:
+    r"""The formation gain of ``epsilon = "auto"``: :math:`1/\lambda_{\max}(L)`.
+
+    Half the stability limit: the fastest step at which every mode of the shape error,
+    :math:`1 - \varepsilon\lambda_i`, decays without changing sign (the step that minimises
+    the spectral radius, :math:`2/(\lambda_2 + \lambda_{\max})`, would make the stiffest mode
+    alternate sign every step: the UAVs would zig-zag). Not in the paper.
+
+    Parameters
+    ----------
+    adjacency : Adjacency
+        The communication graph.
+
+    Returns
+    -------
+    float
+        :math:`\varepsilon`, per step.
+    """
+    return 0.5 * formation_step_limit(adjacency)
+
+
+def auto_consensus_step(adjacency: Adjacency, leader: int) -> float:
+    r"""The consensus step of ``gamma = "auto"``: :math:`\min(1/\lambda_{\max}(L_{ff}),
+    0.99/\Delta)`.
+
+    The fastest step without sign changes of the followers' velocity error, kept below
+    :math:`1/\Delta` so that each update is a convex combination (no velocity exceeds the
+    leader's; ``docs/control.md``). Not in the paper.
+
+    Parameters
+    ----------
+    adjacency : Adjacency
+        The communication graph.
+    leader : int
+        Index of the leader UAV.
+
+    Returns
+    -------
+    float
+        :math:`\gamma`, per step.
+    """
+    return min(
+        0.5 * consensus_step_limit(adjacency, leader), 0.99 / float(adjacency.degrees.max())
+    )
 
 
 def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:

@@ -39,14 +39,18 @@ from numba import njit, prange
 from .control import (
     consensus_update,
     control_cost,
-    eta_goal,
     eta_rate_limit,
     formation_update,
     motion_model,
     reference_velocity,
+    route_eta_goal,
+    route_point,
+    travel_weight,
 )
 from .estimation import noisy_range
 from .obstacles import clearance_at, repulsion_at
+from .planning import best_waypoint
+from .safety import safety_step
 from .spatial import min_separation
 from .tracking import predict, update
 
@@ -58,9 +62,11 @@ __all__ = [
     "RunOutputs",
     "SceneArrays",
     "control_step",
+    "leader_goal",
     "run_batch",
     "run_mission",
     "sense_target",
+    "steering_footprint",
 ]
 
 #: A run whose UAV has a coordinate (x or y) beyond this magnitude (m), or NaN, diverged.
@@ -89,6 +95,30 @@ class MissionConstants(NamedTuple):
         Sensing in the loop (the goal is the filter's estimate).
     measure_every : int
         Ranges are measured every this many steps.
+    safety : bool
+        The safety filter is on (:mod:`crlbswarm.safety`).
+    min_separation : float
+        Its smallest distance between two UAVs, m.
+    sensing_radius : float
+        Its sensing radius, m.
+    decay : float
+        Its barrier rate.
+    pair_margin : float
+        Its margin between two UAVs against the disturbance, m.
+    obstacle_margin : float
+        Its margin from obstacles, m.
+    vmax_step : float
+        Largest displacement per step, ``max_speed * dt``, m.
+    planner : bool
+        The leader follows the planned route (:mod:`crlbswarm.planning`).
+    inflation : float
+        The route's clearance from every obstacle, m.
+    route_x : float
+        The route's goal, x, m.
+    route_y : float
+        The route's goal, y, m.
+    carrot : float
+        How far ahead along the route the leader aims, m.
     """
 
     dt: float
@@ -98,6 +128,18 @@ class MissionConstants(NamedTuple):
     snr_constant: float
     estimate: bool
     measure_every: int
+    safety: bool
+    min_separation: float
+    sensing_radius: float
+    decay: float
+    pair_margin: float
+    obstacle_margin: float
+    vmax_step: float
+    planner: bool
+    inflation: float
+    route_x: float
+    route_y: float
+    carrot: float
 
 
 class SceneArrays(NamedTuple):
@@ -105,8 +147,6 @@ class SceneArrays(NamedTuple):
 
     Parameters
     ----------
-    delta : ndarray, shape (M, 2)
-        Slot offsets of :math:`F^*` from the target, m.
     indptr : ndarray of int64, shape (M+1,)
         CSR row pointers of the communication graph.
     indices : ndarray of int64
@@ -121,9 +161,14 @@ class SceneArrays(NamedTuple):
         Its process-noise covariance.
     p0 : ndarray, shape (n, n)
         Prior covariance of the filter.
+    nodes : ndarray, shape (N, 2)
+        Nodes of the route's roadmap, m (empty without the planner).
+    node_dist : ndarray, shape (N,)
+        Their distance to the route's goal along the roadmap, m.
+    next_node : ndarray of int64, shape (N,)
+        The next node toward the goal (-1 for the goal).
     """
 
-    delta: np.ndarray
     indptr: np.ndarray
     indices: np.ndarray
     rects: np.ndarray
@@ -131,6 +176,9 @@ class SceneArrays(NamedTuple):
     f_mat: np.ndarray
     q_mat: np.ndarray
     p0: np.ndarray
+    nodes: np.ndarray
+    node_dist: np.ndarray
+    next_node: np.ndarray
 
 
 class RunInputs(NamedTuple):
@@ -148,6 +196,9 @@ class RunInputs(NamedTuple):
         True target velocity, m/s.
     x0 : ndarray, shape (n,)
         Prior mean of the filter.
+    delta : ndarray, shape (M, 2)
+        Each UAV's slot offset in :math:`F^*` from the target (after the slot assignment),
+        m.
     """
 
     noise: np.ndarray
@@ -155,6 +206,7 @@ class RunInputs(NamedTuple):
     target: np.ndarray
     target_velocity: np.ndarray
     x0: np.ndarray
+    delta: np.ndarray
 
 
 class RunOutputs(NamedTuple):
@@ -180,6 +232,8 @@ class RunOutputs(NamedTuple):
         Filter estimate (sensing in the loop).
     estimate_variance : ndarray, shape (K+1,)
         Trace of its position covariance, m^2.
+    distance_to_go : ndarray, shape (K+1,)
+        Distance from the centroid to the target along the route, m.
     """
 
     q: np.ndarray
@@ -191,6 +245,7 @@ class RunOutputs(NamedTuple):
     cost: np.ndarray
     estimate: np.ndarray
     estimate_variance: np.ndarray
+    distance_to_go: np.ndarray
 
 
 @njit(cache=True)
@@ -207,33 +262,80 @@ def sense_target(q, s_true, z, x, p_cov, ranges, const):
 
 
 @njit(cache=True)
-def control_step(k, q, q_next, v, v_next, vref, eta, u, cx, cy, sx, sy, out, inp, scene, ctl,
-                 rule, const):  # fmt: skip
-    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3), the cost (15), the
-    consensus (14) and the next eta. Returns False if a position ran away."""
+def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, node, out, inp,
+                 scene, ctl, rule, const, a_work, b_work):  # fmt: skip
+    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3) (through the safety
+    filter when it is on), the cost (15), the consensus (14) and the next eta. Returns False
+    if a position ran away."""
     dt = const.dt
-    formation_update(q, scene.delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
+    delta = inp.delta
+    formation_update(q, delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
     noise = inp.noise[k]
     for m in range(q.shape[0]):
         rx, ry = repulsion_at(
             q[m, 0], q[m, 1], scene.rects, scene.circles, ctl.repulsion_gain,
             ctl.safety_radius, ctl.repulsion_max_step,
         )  # fmt: skip
-        q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rx, v[m, 0], dt, noise[m, 0])
-        q_next[m, 1] = motion_model(q[m, 1], u[m, 1], ry, v[m, 1], dt, noise[m, 1])
+        if const.safety:  # the nominal displacement, filtered below
+            d_work[m, 0] = u[m, 0] + rx + v[m, 0] * dt
+            d_work[m, 1] = u[m, 1] + ry + v[m, 1] * dt
+        else:
+            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rx, v[m, 0], dt, noise[m, 0])
+            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], ry, v[m, 1], dt, noise[m, 1])
+    if const.safety:
+        safety_step(
+            q, d_work, u, scene.rects, scene.circles, const.min_separation,
+            const.sensing_radius, const.decay, const.pair_margin, const.obstacle_margin,
+            const.vmax_step, a_work, b_work,
+        )  # fmt: skip
+        for m in range(q.shape[0]):  # eq. (3) with the safe displacement (in u) as the input
+            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], 0.0, 0.0, dt, noise[m, 0])
+            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], 0.0, 0.0, dt, noise[m, 1])
+    for m in range(q.shape[0]):
         if not (abs(q_next[m, 0]) < DIVERGENCE_LIMIT and abs(q_next[m, 1]) < DIVERGENCE_LIMIT):
             return False
-    out.cost[k] = control_cost(q, q_next, scene.delta, vref, dt, scene.indptr, scene.indices)
+    out.cost[k] = control_cost(q, q_next, delta, vref, dt, scene.indptr, scene.indices)
     consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
-    if rule.enabled:
-        goal = eta_goal(
-            cx, cy, sx, sy, const.radius, scene.rects, scene.circles,
-            rule.margin, rule.lookahead, rule.samples, rule.minimum,
+    if rule.enabled:  # along the route (the straight line to the target off the planner)
+        goal = route_eta_goal(
+            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
+            scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum,
         )  # fmt: skip
         out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * dt)
     else:
         out.eta[k + 1] = 1.0
     return True
+
+
+@njit(cache=True, inline="always")
+def steering_footprint(eta, cx, cy, sx, sy, ctl, const):
+    """Radius of the formation's disc that the leader steers off obstacles: eta r* while
+    travelling, fading to 0 over the target (:func:`crlbswarm.control.travel_weight`), so a
+    formation whose slots are clear hovers exactly over the target; 0 without steering."""
+    if not ctl.formation_steering:
+        return 0.0
+    return eta * const.radius * travel_weight(math.hypot(cx - sx, cy - sy), const.radius)
+
+
+@njit(cache=True)
+def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const):
+    """Step 1's goal for the formation's centre: the target (``sx, sy``, moving at ``tvx,
+    tvy``), or with the planner, while the target is out of sight, the point ``const.carrot``
+    ahead of the centre along the route (no feedforward; a carrot, so that the formation
+    keeps moving when its centre cannot reach a node exactly). Returns ``(gx, gy, vx, vy,
+    distance to go, node)``, node -1 on the last leg
+    (:func:`crlbswarm.planning.best_waypoint`)."""
+    if not const.planner:
+        return sx, sy, tvx, tvy, math.hypot(cx - sx, cy - sy), -1
+    k, togo = best_waypoint(
+        cx, cy, scene.nodes, scene.node_dist, const.route_x, const.route_y, scene.rects,
+        scene.circles, const.inflation,
+    )  # fmt: skip
+    if k < 0 or togo <= const.carrot:  # the goal in sight or near: the last leg
+        togo = togo if k >= -1 else math.hypot(cx - sx, cy - sy)  # (-2: no route, unexpected)
+        return sx, sy, tvx, tvy, togo, -1
+    gx, gy, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
+    return gx, gy, 0.0, 0.0, togo, k
 
 
 @njit(cache=True)
@@ -244,6 +346,10 @@ def run_mission(out, inp, scene, ctl, rule, const):
     m_uavs = out.q.shape[1]
     leader = const.leader
     u = np.empty((m_uavs, 2))
+    d_work = np.empty((m_uavs, 2))
+    n_rows = m_uavs - 1 + scene.rects.shape[0] + scene.circles.shape[0]
+    a_work = np.empty((max(n_rows, 1), 2))  # rows of the safety filter's QP
+    b_work = np.empty(max(n_rows, 1))
     vref = np.empty(2)
     ranges = np.empty(m_uavs)
     x = inp.x0.copy()
@@ -273,11 +379,14 @@ def run_mission(out, inp, scene, ctl, rule, const):
         cx /= m_uavs
         cy /= m_uavs
         # Step 1: the leader's reference velocity toward its slot over the goal.
+        gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
+            cx, cy, sx, sy, tvx, tvy, scene, const
+        )
         vref[0], vref[1] = reference_velocity(
-            q[leader, 0], q[leader, 1], sx + eta * scene.delta[leader, 0],
-            sy + eta * scene.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
-            tvx, tvy, scene.rects, scene.circles, ctl.repulsion_gain, ctl.safety_radius,
-            eta * const.radius if ctl.formation_steering else 0.0, const.dt,
+            q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],
+            gy + eta * inp.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
+            fvx, fvy, scene.rects, scene.circles, ctl.repulsion_gain, ctl.safety_radius,
+            steering_footprint(eta, cx, cy, sx, sy, ctl, const), const.dt,
         )  # fmt: skip
         out.v_ref[k, 0] = vref[0]
         out.v_ref[k, 1] = vref[1]
@@ -290,8 +399,9 @@ def run_mission(out, inp, scene, ctl, rule, const):
         out.separation[k] = min_separation(q)
         if k == k_steps:
             break
-        if not control_step(k, q, out.q[k + 1], out.v[k], out.v[k + 1], vref, eta, u, cx, cy,
-                            sx, sy, out, inp, scene, ctl, rule, const):  # fmt: skip
+        if not control_step(k, q, out.q[k + 1], out.v[k], out.v[k + 1], vref, eta, u, d_work,
+                            cx, cy, sx, sy, node, out, inp, scene, ctl, rule, const, a_work,
+                            b_work):  # fmt: skip
             return k + 1
         if const.estimate:  # Step 3: prediction with the target's motion model.
             x, p_cov = predict(x, p_cov, scene.f_mat, scene.q_mat)
@@ -306,7 +416,7 @@ def run_batch(outs, inps, status, scene, ctl, rule, const):
     for b in prange(status.shape[0]):
         out = RunOutputs(
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
-            outs[6][b], outs[7][b], outs[8][b],
+            outs[6][b], outs[7][b], outs[8][b], outs[9][b],
         )  # fmt: skip
-        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b])
+        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
         status[b] = run_mission(out, inp, scene, ctl, rule, const)

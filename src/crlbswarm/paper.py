@@ -21,8 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from . import _validation as _v
+from . import __version__, _validation as _v
 from .errors import FieldError
 from .output import (
     check_output_folder,

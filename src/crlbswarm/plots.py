@@ -283,7 +283,7 @@ def plot_mission_trajectories(
     # F* over the target where it is at the end (the target may move).
     target_path = result.target[run]
     final_target = target_path[-1]
-    slots = result.scenario.formation - np.asarray(result.scenario.target) + final_target
+    slots = result.scenario.slots - np.asarray(result.scenario.target) + final_target
     ax.add_patch(
         Polygon(
             slots, closed=True, fill=False, ec="C3", ls="--", lw=1.0, label="F* (CRLB-optimal)"

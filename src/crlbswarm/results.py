@@ -28,16 +28,25 @@ from .scenario import Scenario, load_scenario
 __all__ = [
     "CENTROID_TOL",
     "CRLB_TOL",
+    "OUTCOMES",
+    "PROGRESS_TOL",
     "RESULT_FILES",
     "STEADY_STATE_S",
     "MissionResult",
     "load_results",
+    "outcome_report",
 ]
 
 #: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
 CRLB_TOL = 0.01
 #: Convergence: the centroid within this distance of the target, m.
 CENTROID_TOL = 0.5
+
+#: Progress: the distance to go must fall by more than this over the stall window, m.
+PROGRESS_TOL = CENTROID_TOL
+
+#: The outcomes of a run, in order of precedence.
+OUTCOMES = ("collision", "converged", "timeout", "stuck")
 
 #: Length of the "steady state" window at the end of a mission (estimation metrics), s.
 STEADY_STATE_S = 30.0
@@ -87,6 +96,9 @@ class MissionResult:
         Smallest signed distance from a UAV to an obstacle, m (inf without obstacles).
     separation : ndarray, shape (B, K+1)
         Smallest distance between two UAVs, m.
+    distance_to_go : ndarray, shape (B, K+1)
+        Distance from the formation's centroid to the target along the planned route (the
+        straight line without the planner), m: the progress of the mission.
     bound : float
         Theoretical bound :math:`4/\\sum_m w_m^*`, eq. (11), m^2.
     """
@@ -107,6 +119,7 @@ class MissionResult:
     cost: np.ndarray
     clearance: np.ndarray
     separation: np.ndarray
+    distance_to_go: np.ndarray
     bound: float
     metrics: dict[str, np.ndarray] = field(init=False)
 
@@ -143,12 +156,17 @@ class MissionResult:
         ratio = self.crlb / self.bound
         centroid = self.centroid_error
         ok = (ratio <= 1.0 + CRLB_TOL) & (centroid <= CENTROID_TOL)
-        # Converged from step k on: every later step is ok (reverse cumulative AND).
+        # Within tolerance from step k on: every later step is ok (reverse cumulative AND);
+        # converged if that lasts at least time.hold seconds.
         settled = np.flip(np.logical_and.accumulate(np.flip(ok, axis=1), axis=1), axis=1)
         first = np.argmax(settled, axis=1)
-        conv = np.where(settled[:, -1], self.time[first], np.nan)
+        held = settled[:, -1] & (
+            self.time[-1] - self.time[first] >= self.scenario.time.hold - 1e-9
+        )
+        conv = np.where(held, self.time[first], np.nan)
         return {
             "seed": self.seeds,
+            "outcome": self._outcomes(held),
             "final_crlb_ratio": ratio[:, -1],
             "final_centroid_error_m": centroid[:, -1],
             "final_eta": self.eta[:, -1],
@@ -160,6 +178,29 @@ class MissionResult:
             "final_cost": self.cost[:, -1],
             **self._estimation_metrics(),
         }
+
+    def _outcomes(self, converged: np.ndarray) -> np.ndarray:
+        """Each run's outcome: ``collision`` (a UAV inside an obstacle, or two UAVs closer
+        than ``safety.min_separation``, at any step), else ``converged``, else ``timeout``
+        (the distance to go fell by more than PROGRESS_TOL over the last ``time.stall``
+        seconds) or ``stuck`` (it did not)."""
+        sc = self.scenario
+        collided = (self.separation.min(axis=1) < sc.safety.min_separation * (1.0 - 1e-9)) | (
+            self.clearance.min(axis=1) <= 0.0
+        )
+        window = min(sc.time.stall, float(self.time[-1]))
+        k0 = int(np.argmax(self.time >= self.time[-1] - window - 1e-9))
+        tail = np.ascontiguousarray(self.distance_to_go[:, k0:])
+        progressing = tail.max(axis=1) - tail[:, -1] > PROGRESS_TOL
+        out = np.where(progressing, "timeout", "stuck")
+        out = np.where(converged, "converged", out)
+        return np.where(collided, "collision", out)
+
+    @property
+    def outcome_counts(self) -> dict[str, int]:
+        """How many runs ended in each outcome (see ``metrics["outcome"]``)."""
+        names, counts = np.unique(self.metrics["outcome"], return_counts=True)
+        return {str(n): int(c) for n, c in zip(names, counts, strict=True)}
 
     def _estimation_metrics(self) -> dict[str, np.ndarray]:
         error, variance = self.estimation_error, self.estimate_variance
@@ -312,7 +353,7 @@ class MissionResult:
         out = make_output_folder(folder, "folder")
         arrays: dict[str, Any] = {n: np.asarray(getattr(self, n)) for n in _ARRAY_FIELDS}
         arrays = {k: v for k, v in arrays.items() if v.dtype != object}  # None: not kept
-        arrays["formation"] = self.scenario.formation
+        arrays["formation"] = self.scenario.slots
         paths = [out / name for name in RESULT_FILES]
         with atomic_path(paths[0]) as tmp:
             np.savez(tmp, **arrays)
@@ -330,9 +371,9 @@ class MissionResult:
         Returns
         -------
         dict
-            Scenario name, number of runs, steps, the bound, and for each metric its min,
-            mean and max over the runs (NaN-aware for the convergence time, with the number
-            of runs that converged).
+            Scenario name, number of runs, steps, the bound, the count of each outcome, and
+            for each numeric metric its min, mean and max over the runs (NaN-aware for the
+            convergence time, with the number of runs that converged).
         """
         out: dict[str, Any] = {
             "scenario": self.scenario.name,
@@ -341,11 +382,12 @@ class MissionResult:
             "duration_s": float(self.time[-1]),
             "bound_m2": float(self.bound),
             "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
+            "outcomes": self.outcome_counts,
         }
         if self.estimate is not None:
             out["steady_rmse_over_sqrt_pcrb"] = self.steady_rmse_over_sqrt_pcrb
         for name, values in self.metrics.items():
-            if name == "seed":
+            if name == "seed" or values.dtype.kind not in "fiu":
                 continue
             finite = values[np.isfinite(values)]
             out[name] = {
@@ -354,6 +396,44 @@ class MissionResult:
                 "max": float(finite.max()) if finite.size else None,
             }
         return out
+
+
+def outcome_report(result: MissionResult) -> list[str]:
+    """A few lines for the end of a batch: outcomes, median convergence time, worst final
+    CRLB / bound, smallest clearance and separation, and a warning when a run did not
+    converge.
+
+    Parameters
+    ----------
+    result : MissionResult
+        The batch.
+
+    Returns
+    -------
+    list of str
+        The lines (the last one starts with ``warning:`` if some runs did not end with the
+        outcome ``converged``).
+    """
+    m, n = result.metrics, result.n_runs
+    counts = result.outcome_counts
+    conv = m["convergence_time_s"]
+    median = f"{np.nanmedian(conv):.1f} s" if np.isfinite(conv).any() else "-"
+    lines = [
+        "outcomes            "
+        + ", ".join(f"{k} {counts[k]}/{n}" for k in OUTCOMES if k in counts),
+        f"median convergence  {median}",
+        f"worst CRLB/bound    {np.max(m['final_crlb_ratio']):.4g} (final)",
+        f"min clearance       {np.min(m['min_clearance_m']):.4g} m",
+        f"min separation      {np.min(m['min_separation_m']):.4g} m "
+        f"(safety.min_separation {result.scenario.safety.min_separation:g} m)",
+    ]
+    failed = n - counts.get("converged", 0)
+    if failed:
+        why = ", ".join(f"{k} {counts[k]}" for k in OUTCOMES if k != "converged" and k in counts)
+        lines.append(
+            f"warning: {failed} of {n} runs did not end converged ({why}); see metrics.csv"
+        )
+    return lines
 
 
 #: The array attributes of a result (everything but the scenario and the derived metrics).
@@ -407,7 +487,7 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
     shapes = {
         "seeds": (b,), "time": (k1,), "centroid": (b, k1, 2), "reference_velocity": (b, k1, 2),
         "target": (b, k1, 2), "eta": (b, k1), "crlb": (b, k1), "cost": (b, k1 - 1),
-        "clearance": (b, k1), "separation": (b, k1), "bound": (),
+        "clearance": (b, k1), "separation": (b, k1), "distance_to_go": (b, k1), "bound": (),
     }  # fmt: skip
     if arrays["positions"] is not None or arrays["velocities"] is not None:
         shapes.update(positions=(b, k1, m, 2), velocities=(b, k1, m, 2))

@@ -33,14 +33,16 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, create_model, field_validator, model_validator
 
-from ._config import ConfigModel, model_to_toml, read_toml, read_toml_file, validate
+from ._config import ConfigModel, PositiveFloat, model_to_toml, read_toml, read_toml_file, validate
 from ._validation import MIN_UAVS
 from .control import ControlGains, EtaRule
 from .design import optimal_formation
 from .errors import FieldError, ScenarioError
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph
 from .obstacles import Obstacles
+from .planning import FormationConfig, GuidanceConfig
 from .radar import Radar, radar_parameters
+from .safety import SafetyConfig, disturbance_margins
 from .scenario_checks import check_scenario
 
 __all__ = [
@@ -48,9 +50,12 @@ __all__ = [
     "CircleObstacle",
     "DisturbanceConfig",
     "EstimationConfig",
+    "FormationConfig",
     "GraphConfig",
+    "GuidanceConfig",
     "RadarConfig",
     "RectangleObstacle",
+    "SafetyConfig",
     "Scenario",
     "TargetMotionConfig",
     "TimeConfig",
@@ -66,7 +71,6 @@ MAX_STEPS = 10_000_000
 #: Largest distance of the prior mean from the truth, in prior standard deviations.
 MAX_PRIOR_SIGMAS = 5.0
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
@@ -162,6 +166,12 @@ class TimeConfig(ConfigModel):
 
     step: PositiveFloat = Field(description="sampling interval dT, s")
     duration: PositiveFloat = Field(description="mission length, s (a whole number of steps)")
+    hold: PositiveFloat = Field(
+        10.0, description="converged: within tolerance at least this long until the end, s"
+    )
+    stall: PositiveFloat = Field(
+        20.0, description="stuck: no progress toward the target for this long at the end, s"
+    )
 
     @field_validator("duration")
     @classmethod
@@ -376,6 +386,9 @@ class Scenario(ConfigModel):
     target_motion: TargetMotionConfig = Field(
         TargetMotionConfig(), description="motion of the target (static by default)"
     )
+    safety: SafetyConfig = Field(SafetyConfig(), description="inter-UAV safety filter")
+    guidance: GuidanceConfig = Field(GuidanceConfig(), description="route planner")
+    formation: FormationConfig = Field(FormationConfig(), description="slot assignment")
 
     @model_validator(mode="after")
     def _check_whole(self) -> Scenario:
@@ -405,8 +418,85 @@ class Scenario(ConfigModel):
         return Adjacency.from_graph(graph)
 
     @cached_property
-    def formation(self) -> np.ndarray:
-        """The CRLB-optimal formation F* over the target, shape (M, 2), m (read-only)."""
+    def safety_margins(self) -> tuple[float, float]:
+        """Margins of the safety filter against the motion disturbance, m: (between two UAVs,
+        from an obstacle) (:func:`crlbswarm.safety.disturbance_margins`)."""
+        s = self.safety
+        return disturbance_margins(self.disturbance.sigma, s.decay, s.noise_sigmas)
+
+    @property
+    def start_separation(self) -> float:
+        """Smallest distance between two starts drawn in the start region with the safety
+        filter on: ``safety.min_separation`` plus the pair margin, m."""
+        return self.safety.min_separation + self.safety_margins[0]
+
+    @property
+    def formation_radius(self) -> float:
+        """Radius of F* around the target, m."""
+        offsets = self.slots - np.asarray(self.target)
+        return float(np.max(np.hypot(offsets[:, 0], offsets[:, 1])))
+
+    @property
+    def formation_side(self) -> float:
+        """Side of the regular polygon F* (distance between neighbouring slots), m."""
+        return 2.0 * self.formation_radius * math.sin(math.pi / self.uavs.count)
+
+    @cached_property
+    def eta_rule(self) -> EtaRule:
+        """The eta rule as flown: with the safety filter on, its ``minimum`` is raised (if
+        needed) so that the smallest formation's side keeps ``start_separation``."""
+        if not self.safety.enabled:
+            return self.eta
+        floor = self.start_separation * (1.0 + 1e-6) / self.formation_side
+        return (
+            self.eta
+            if floor <= self.eta.minimum
+            else self.eta.model_copy(update={"minimum": min(1.0, floor)})
+        )
+
+    @property
+    def route_inflation(self) -> float:
+        """How far the route of the formation's centre keeps from every obstacle: the radius
+        of its smallest disc plus ``guidance.clearance``, m."""
+        clearance = self.guidance.clearance
+        if clearance is None:
+            clearance = self.control.safety_radius
+        return self.eta_rule.minimum * self.formation_radius + clearance
+
+    @property
+    def route_carrot(self) -> float:
+        """How far ahead of the formation's centre along the route the leader aims: twice the
+        distance at which its guidance saturates, ``2 cruise_speed / guidance_gain``, m (so
+        it flies the route at cruise speed)."""
+        return 2.0 * self.control.cruise_speed / self.control.guidance_gain
+
+    @property
+    def planner_on(self) -> bool:
+        """Whether the leader follows a planned route: ``guidance.planner`` on, obstacles to
+        plan around, and a static target (the roadmap is built for one goal)."""
+        return (
+            self.guidance.planner and self.obstacle_set.count > 0 and not self.target_motion.moving
+        )
+
+    @property
+    def route_goal(self) -> np.ndarray:
+        """The goal of the route: the target, or the filter's prior mean with sensing in the
+        loop (the UAVs do not know the target)."""
+        goal = np.asarray(self.target, dtype=float)
+        if self.estimation.enabled:
+            goal = goal + np.asarray(self.estimation.prior_offset)
+        return goal
+
+    @cached_property
+    def gains(self) -> ControlGains:
+        """The control gains with ``"auto"`` resolved on this scenario's graph."""
+        return self.control.resolve(self.adjacency, self.uavs.leader)
+
+    @cached_property
+    def slots(self) -> np.ndarray:
+        """The slots of the CRLB-optimal formation F* over the target, in the order of the
+        UAVs' indices (slot m is UAV m's unless ``formation.assignment`` reassigns them),
+        shape (M, 2), m (read-only)."""
         f = optimal_formation(
             self.uavs.count,
             np.asarray(self.target),

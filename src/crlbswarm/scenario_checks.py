@@ -16,13 +16,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import FieldError
-from .graphs import Adjacency, formation_step_limit
+from .graphs import Adjacency, formation_step_limit, settling_steps
 from .obstacles import Obstacles, obstacle_clearance
+from .planning import plan_route
 
 if TYPE_CHECKING:
     from .scenario import Scenario
 
-__all__ = ["check_scenario"]
+__all__ = ["check_scenario", "convergence_estimate", "preflight"]
 
 
 def check_scenario(scenario: Scenario) -> None:
@@ -56,7 +57,7 @@ def check_scenario(scenario: Scenario) -> None:
         raise FieldError(field, exc.reason) from exc
     _check_gains(scenario, adjacency)
     _check_estimation(scenario, obstacles)
-    clearance = obstacle_clearance(scenario.formation, obstacles) if obstacles.count else None
+    clearance = obstacle_clearance(scenario.slots, obstacles) if obstacles.count else None
     if clearance is not None and np.any(clearance <= scenario.control.safety_radius):
         m = int(np.argmin(clearance))
         raise FieldError(
@@ -65,6 +66,75 @@ def check_scenario(scenario: Scenario) -> None:
             f"obstacle, within control.safety_radius = {scenario.control.safety_radius:g} m: "
             "the formation could never settle there",
         )
+    _check_safety(scenario)
+    _check_route(scenario)
+
+
+def _check_safety(scenario: Scenario) -> None:
+    """The safety filter's settings against the formation, the gains and the starts."""
+    safety = scenario.safety
+    if not safety.enabled:
+        return
+    cruise = scenario.control.cruise_speed
+    if safety.max_speed < cruise:
+        raise FieldError(
+            "safety.max_speed",
+            f"{safety.max_speed:g} m/s is below control.cruise_speed = {cruise:g} m/s: the "
+            "leader could not fly its own reference",
+        )
+    need, side = scenario.start_separation, scenario.formation_side
+    if need >= side:
+        raise FieldError(
+            "safety.min_separation",
+            f"{safety.min_separation:g} m (plus a margin of {need - safety.min_separation:.3g} m "
+            f"against the disturbance) is not below the side of F*, {side:.4g} m: the "
+            "formation itself would break it",
+        )
+    dt = scenario.time.step
+    reach = need + 2.0 * safety.max_speed * dt
+    if safety.radius_for(dt) < reach:
+        raise FieldError(
+            "safety.sensing_radius",
+            f"{safety.radius_for(dt):g} m is too short: two UAVs farther apart could close "
+            f"the gap in one step; it must be at least {reach:.4g} m (min_separation, its "
+            "margin and 2 max_speed time.step)",
+        )
+    if scenario.uavs.start is not None:
+        start = np.asarray(scenario.uavs.start, dtype=float)
+        gaps = np.hypot(*(start[:, None] - start[None, :]).transpose(2, 0, 1))
+        np.fill_diagonal(gaps, math.inf)
+        i, j = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
+        if gaps[i, j] < safety.min_separation:
+            raise FieldError(
+                "uavs.start",
+                f"UAVs {min(i, j)} and {max(i, j)} start {gaps[i, j]:.3g} m apart, closer "
+                f"than safety.min_separation = {safety.min_separation:g} m",
+            )
+    elif scenario.uavs.start_region is not None:
+        (x0, x1), (y0, y1) = scenario.uavs.start_region
+        room = (x1 - x0 + need) * (y1 - y0 + need)
+        if room < 4.0 * scenario.uavs.count * need * need:
+            raise FieldError(
+                "uavs.start_region",
+                f"too small to draw {scenario.uavs.count} starts {need:.3g} m apart "
+                "(safety.min_separation and its margin): make it larger",
+            )
+
+
+def _check_route(scenario: Scenario) -> None:
+    """With the planner on, a route for the formation's smallest footprint must exist."""
+    if not scenario.planner_on:
+        return
+    start = _start_centre(scenario)
+    kinds = [type(ob).__name__ for ob in scenario.obstacles]
+    order = [i for i, k in enumerate(kinds) if k == "RectangleObstacle"]
+    order += [i for i, k in enumerate(kinds) if k != "RectangleObstacle"]
+    plan_route(
+        start, scenario.route_goal, scenario.obstacle_set, scenario.route_inflation,
+        names=[f"obstacles[{i}]" for i in order], field="guidance",
+        hint="lower eta.minimum or guidance.clearance, widen the passage, or lower the "
+        "altitude (a smaller F*)",
+    )  # fmt: skip
 
 
 def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:
@@ -107,21 +177,21 @@ def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:
 
 def _check_gains(scenario: Scenario, adjacency: Adjacency) -> None:
     """Stability bounds of the linear laws and the step-size limits of the nonlinear ones."""
-    ctl, step = scenario.control, scenario.time.step
+    ctl, step = scenario.gains, scenario.time.step  # "auto" gains resolved on the graph
     # A relative allowance: at the limit itself the error does not decay, and the
     # computed eigenvalue may fall a rounding error short of it.
+    eps, gamma = float(ctl.epsilon), float(ctl.gamma)
     eps_max = formation_step_limit(adjacency) * (1.0 - 1e-12)
-    if ctl.epsilon >= eps_max:
+    if eps >= eps_max:
         raise FieldError(
             "control.epsilon",
-            f"{ctl.epsilon:g} is unstable on this graph (must be < {eps_max:.4g}, "
-            "2/lambda_max(L))",
+            f"{eps:g} is unstable on this graph (must be < {eps_max:.4g}, 2/lambda_max(L))",
         )
     max_degree = int(adjacency.degrees.max())
-    if ctl.gamma * max_degree >= 1.0:
+    if gamma * max_degree >= 1.0:
         raise FieldError(
             "control.gamma",
-            f"{ctl.gamma:g} is too large for this graph: it must be < 1/max degree = "
+            f"{gamma:g} is too large for this graph: it must be < 1/max degree = "
             f"{1.0 / max_degree:.4g} (for example {0.5 / max_degree:.4g})",
         )
     if ctl.guidance_gain * step >= 1.0:
@@ -153,3 +223,78 @@ def _check_outside(obstacles: Obstacles, points: np.ndarray, field: str) -> None
     if inside.size:
         where = f"{field}[{inside[0]}]" if points.shape[0] > 1 else field
         raise FieldError(where, "lies inside an obstacle")
+
+
+def convergence_estimate(scenario: Scenario) -> dict[str, float]:
+    """A rough time for the formation to settle over the target, before flying.
+
+    Travel: the route's length (the straight line without the planner) from the middle of
+    the start region at the cruise speed; settling: the steps the slower linear law needs to
+    shrink its error a hundredfold (:func:`crlbswarm.graphs.settling_steps`); hold:
+    ``time.hold``. Not a bound: obstacles, the eta rule and the safety filter slow the
+    formation down (the layouts of ``docs/safety.md`` settle within 1.5 times it).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    dict
+        ``travel_s``, ``settling_s``, ``hold_s`` and their sum ``total_s`` (``nan`` settling
+        above ``EXACT_EIGEN_MAX_NODES`` UAVs).
+    """
+    start = _start_centre(scenario)
+    goal = np.asarray(scenario.target, dtype=float)
+    if scenario.planner_on:
+        route = plan_route(start, scenario.route_goal, scenario.obstacle_set,
+                           scenario.route_inflation)  # fmt: skip
+        length = float(np.sum(np.hypot(*np.diff(route, axis=0).T)))
+    else:
+        length = float(np.hypot(*(goal - start)))
+    gains = scenario.gains
+    steps = settling_steps(scenario.adjacency, scenario.uavs.leader, float(gains.epsilon),
+                           float(gains.gamma))  # fmt: skip
+    out = {
+        "travel_s": length / gains.cruise_speed,
+        "settling_s": steps * scenario.time.step,
+        "hold_s": scenario.time.hold,
+    }
+    out["total_s"] = sum(out.values())
+    return out
+
+
+def preflight(scenario: Scenario) -> list[str]:
+    """Warnings before flying: what a valid scenario may still fail at.
+
+    Today one: the estimated time to settle (:func:`convergence_estimate`) exceeds the
+    mission's duration.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    list of str
+        One line per warning (empty if none).
+    """
+    est = convergence_estimate(scenario)
+    if not est["total_s"] > scenario.time.duration:  # (nan: not estimated)
+        return []
+    return [
+        f"the formation needs about {est['total_s']:.0f} s to settle (travel "
+        f"{est['travel_s']:.0f} s at cruise speed, settling {est['settling_s']:.0f} s, hold "
+        f"{est['hold_s']:.0f} s), more than time.duration = {scenario.time.duration:g} s: "
+        'lengthen the mission, raise control.cruise_speed, or set the gains to "auto" or use '
+        "a denser graph"
+    ]
+
+
+def _start_centre(scenario: Scenario) -> np.ndarray:
+    if scenario.uavs.start is not None:
+        return np.mean(np.asarray(scenario.uavs.start, dtype=float), axis=0)
+    (x0, x1), (y0, y1) = scenario.uavs.start_region  # type: ignore[misc]
+    return np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])

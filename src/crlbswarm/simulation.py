@@ -33,6 +33,7 @@ from .mission_kernel import (
     SceneArrays,
     run_batch,
 )
+from .planning import assign_slots, build_roadmap
 from .results import MissionResult
 from .scenario import Scenario
 from .tracking import (
@@ -63,11 +64,32 @@ def _streams(seed: int, count: int) -> list[np.random.Generator]:
     return [np.random.default_rng(ss) for ss in np.random.SeedSequence(seed).spawn(count)]
 
 
+#: Draws per UAV before the start region is declared too crowded (the scenario checks leave
+#: room for about four times the area the UAVs need, so this is never reached in practice).
+START_ATTEMPTS = 10_000
+
+
 def _start(scenario: Scenario, rng: np.random.Generator) -> np.ndarray:
+    """Start positions: explicit, or uniform in the start region; with the safety filter on,
+    each UAV is redrawn until it is ``scenario.start_separation`` from those before it."""
     if scenario.uavs.start is not None or scenario.uavs.start_region is None:
         return np.array(scenario.uavs.start, dtype=float)  # (exactly one of the two is set)
     (x0, x1), (y0, y1) = scenario.uavs.start_region
-    return rng.uniform((x0, y0), (x1, y1), size=(scenario.uavs.count, 2))
+    m_uavs = scenario.uavs.count
+    if not scenario.safety.enabled:
+        return rng.uniform((x0, y0), (x1, y1), size=(m_uavs, 2))
+    need = scenario.start_separation
+    out = np.empty((m_uavs, 2))
+    for m in range(m_uavs):
+        for _ in range(START_ATTEMPTS):
+            out[m] = rng.uniform((x0, y0), (x1, y1))
+            if m == 0 or np.min(np.hypot(*(out[:m] - out[m]).T)) >= need:
+                break
+        else:
+            raise FieldError(
+                "uavs.start_region", f"no room for UAV {m} at {need:g} m from the others"
+            )
+    return out
 
 
 def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
@@ -124,15 +146,17 @@ def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
 
 def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConstants]:
     """The compiled mission's shared arrays, gains, eta rule and constants for ``sc``."""
-    target = np.asarray(sc.target, dtype=float)
-    delta = np.ascontiguousarray(sc.formation - target)
-    motion, est = sc.target_motion, sc.estimation
+    motion, est, safety = sc.target_motion, sc.estimation, sc.safety
     f_mat, q_mat, n = motion_matrices(
         motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
     )
     p0 = np.diag([est.prior_std**2] * 2 + [est.velocity_prior_std**2] * 2)
+    if sc.planner_on:
+        roadmap = build_roadmap(sc.obstacle_set, sc.route_goal, sc.route_inflation)
+        nodes, node_dist, next_node = roadmap.nodes, roadmap.dist_to_goal, roadmap.next_node
+    else:
+        nodes, node_dist, next_node = np.empty((0, 2)), np.empty(0), np.empty(0, np.int64)
     scene = SceneArrays(
-        delta=delta,
         indptr=sc.adjacency.indptr,
         indices=sc.adjacency.indices,
         rects=sc.obstacle_set.rectangles,
@@ -140,17 +164,33 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         f_mat=np.ascontiguousarray(f_mat[:n, :n]),
         q_mat=np.ascontiguousarray(q_mat[:n, :n]),
         p0=np.ascontiguousarray(p0[:n, :n]),
+        nodes=nodes,
+        node_dist=node_dist,
+        next_node=next_node,
     )
+    pair_margin, obstacle_margin = sc.safety_margins
     const = MissionConstants(
         dt=sc.time.step,
         leader=sc.uavs.leader,
-        radius=float(np.max(np.hypot(delta[:, 0], delta[:, 1]))),
+        radius=sc.formation_radius,
         altitude=sc.altitude,
         snr_constant=float(sc.radar.to_radar().snr_constant),
         estimate=est.enabled,
         measure_every=est.measure_every,
+        safety=safety.enabled,
+        min_separation=safety.min_separation,
+        sensing_radius=safety.radius_for(sc.time.step),
+        decay=safety.decay,
+        pair_margin=pair_margin,
+        obstacle_margin=obstacle_margin,
+        vmax_step=safety.max_speed * sc.time.step,
+        planner=sc.planner_on,
+        inflation=sc.route_inflation,
+        route_x=float(sc.route_goal[0]),
+        route_y=float(sc.route_goal[1]),
+        carrot=sc.route_carrot,
     )
-    return scene, sc.control.kernel_tuple(), sc.eta.kernel_tuple(sc.control), const
+    return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
 
 class _Batch:
@@ -162,8 +202,8 @@ class _Batch:
         self.positions = np.empty(traj) if keep else None
         self.velocities = np.empty(traj) if keep else None
         self.vref, self.centroid, self.target = (np.empty((n_runs, k1, 2)) for _ in range(3))
-        self.eta, self.crlb, self.clearance, self.separation = (
-            np.empty((n_runs, k1)) for _ in range(4)
+        self.eta, self.crlb, self.clearance, self.separation, self.distance_to_go = (
+            np.empty((n_runs, k1)) for _ in range(5)
         )
         self.cost = np.empty((n_runs, k1 - 1))
         est = sc.estimation.enabled
@@ -183,6 +223,7 @@ class _ChunkBuffers:
         self.estimate = np.zeros((chunk_runs, k + 1, 2))
         self.estimate_variance = np.zeros((chunk_runs, k + 1))
         self.x0 = np.zeros((chunk_runs, n_state))
+        self.delta = np.empty((chunk_runs, m, 2))
         self.status = np.empty(chunk_runs, dtype=np.int64)
         # Trajectories of the chunk when the batch does not keep them (else unused, empty).
         rows = 0 if keep else chunk_runs
@@ -192,11 +233,17 @@ class _ChunkBuffers:
 
 def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers, pos: np.ndarray) -> Any:
     """Draw each run's start (into ``pos[:, 0]``), disturbance and range noise from its own
-    streams, and the true target trajectories; returns the target states (B, K+1, 4)."""
+    streams, assign the slots of F* (into ``buf.delta``), and the true target trajectories;
+    returns the target states (B, K+1, 4)."""
     motion_rngs = []
+    offsets = sc.slots - np.asarray(sc.target)
     for i, s in enumerate(seeds):
         start_rng, noise_rng, range_rng, motion_rng = _streams(int(s), 4)
         pos[i, 0] = _start(sc, start_rng)
+        if sc.formation.assignment == "optimal":
+            buf.delta[i] = offsets[assign_slots(pos[i, 0], sc.slots, sc.uavs.leader)]
+        else:
+            buf.delta[i] = offsets
         noise_rng.standard_normal(out=buf.noise[i])
         if sc.estimation.enabled:
             range_rng.standard_normal(out=buf.range_noise[i])
@@ -227,11 +274,11 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
     outs = RunOutputs(
         pos, vel, batch.vref[lo:hi], batch.eta[lo:hi], batch.clearance[lo:hi],
         batch.separation[lo:hi], batch.cost[lo:hi], buf.estimate[:n],
-        buf.estimate_variance[:n],
+        buf.estimate_variance[:n], batch.distance_to_go[lo:hi],
     )  # fmt: skip
     inps = RunInputs(
         buf.noise[:n], buf.range_noise[:n], np.ascontiguousarray(truth[..., :2]),
-        np.ascontiguousarray(truth[..., 2:]), x0,
+        np.ascontiguousarray(truth[..., 2:]), x0, buf.delta[:n],
     )  # fmt: skip
     status = buf.status[:n]
     run_batch(tuple(outs), tuple(inps), status, *kernel_args)
@@ -336,5 +383,6 @@ def simulate(
         cost=batch.cost,
         clearance=batch.clearance,
         separation=batch.separation,
+        distance_to_go=batch.distance_to_go,
         bound=float(crlb_bound(m_uavs, sc.altitude, sc.radar.to_radar())),
     )
