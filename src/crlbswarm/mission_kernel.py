@@ -57,6 +57,7 @@ from .tracking import predict, update
 __all__ = [
     "DIVERGENCE_LIMIT",
     "FILTER_ITERATIONS",
+    "REPLAN_PERIOD",
     "MissionConstants",
     "RunInputs",
     "RunOutputs",
@@ -71,6 +72,9 @@ __all__ = [
 
 #: A run whose UAV has a coordinate (x or y) beyond this magnitude (m), or NaN, diverged.
 DIVERGENCE_LIMIT = 1.0e6
+
+#: The route is re-planned from the formation's centre this often, s.
+REPLAN_PERIOD = 0.5
 
 #: Gauss-Newton iterations of the filter's range update.
 FILTER_ITERATIONS = 3
@@ -119,6 +123,8 @@ class MissionConstants(NamedTuple):
         The route's goal, y, m.
     carrot : float
         How far ahead along the route the leader aims, m.
+    replan_every : int
+        The route is re-planned from the centre every this many steps.
     """
 
     dt: float
@@ -140,6 +146,7 @@ class MissionConstants(NamedTuple):
     route_x: float
     route_y: float
     carrot: float
+    replan_every: int
 
 
 class SceneArrays(NamedTuple):
@@ -318,19 +325,28 @@ def steering_footprint(eta, cx, cy, sx, sy, ctl, const):
 
 
 @njit(cache=True)
-def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const):
+def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const, node, replan):
     """Step 1's goal for the formation's centre: the target (``sx, sy``, moving at ``tvx,
     tvy``), or with the planner, while the target is out of sight, the point ``const.carrot``
     ahead of the centre along the route (no feedforward; a carrot, so that the formation
     keeps moving when its centre cannot reach a node exactly). Returns ``(gx, gy, vx, vy,
     distance to go, node)``, node -1 on the last leg
-    (:func:`crlbswarm.planning.best_waypoint`)."""
+    (:func:`crlbswarm.planning.best_waypoint`). The route is re-planned from the centre when
+    ``replan`` (every ``const.replan_every`` steps); in between, the last ``node`` is kept."""
     if not const.planner:
         return sx, sy, tvx, tvy, math.hypot(cx - sx, cy - sy), -1
-    k, togo = best_waypoint(
-        cx, cy, scene.nodes, scene.node_dist, const.route_x, const.route_y, scene.rects,
-        scene.circles, const.inflation,
-    )  # fmt: skip
+    if replan:
+        k, togo = best_waypoint(
+            cx, cy, scene.nodes, scene.node_dist, const.route_x, const.route_y, scene.rects,
+            scene.circles, const.inflation,
+        )  # fmt: skip
+    else:
+        k = node
+        if k >= 0:
+            togo = math.hypot(scene.nodes[k, 0] - cx, scene.nodes[k, 1] - cy)
+            togo += scene.node_dist[k]
+        else:
+            togo = math.hypot(const.route_x - cx, const.route_y - cy)
     if k < 0 or togo <= const.carrot:  # the goal in sight or near: the last leg
         togo = togo if k >= -1 else math.hypot(cx - sx, cy - sy)  # (-2: no route, unexpected)
         return sx, sy, tvx, tvy, togo, -1
@@ -352,6 +368,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
     b_work = np.empty(max(n_rows, 1))
     vref = np.empty(2)
     ranges = np.empty(m_uavs)
+    node = -1  # the route's current node (re-planned every replan_every steps)
     x = inp.x0.copy()
     p_cov = scene.p0.copy()
     moving = x.shape[0] == 4
@@ -380,7 +397,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
         cy /= m_uavs
         # Step 1: the leader's reference velocity toward its slot over the goal.
         gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
-            cx, cy, sx, sy, tvx, tvy, scene, const
+            cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
         )
         vref[0], vref[1] = reference_velocity(
             q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],

@@ -40,7 +40,7 @@ from .design import optimal_formation
 from .errors import FieldError, ScenarioError
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph
 from .obstacles import Obstacles
-from .planning import FormationConfig, GuidanceConfig
+from .planning import FormationConfig, GuidanceConfig, Roadmap, build_roadmap
 from .radar import Radar, radar_parameters
 from .safety import SafetyConfig, disturbance_margins
 from .scenario_checks import check_scenario
@@ -488,6 +488,19 @@ class Scenario(ConfigModel):
         return goal
 
     @cached_property
+    def radar_model(self) -> Radar:
+        """The :class:`crlbswarm.Radar` of the ``[radar]`` table (built once)."""
+        return self.radar.to_radar()
+
+    @cached_property
+    def roadmap(self) -> Roadmap | None:
+        """The roadmap of the route (:func:`crlbswarm.planning.build_roadmap`), built once;
+        ``None`` when the planner is off (:attr:`planner_on`)."""
+        if not self.planner_on:
+            return None
+        return build_roadmap(self.obstacle_set, self.route_goal, self.route_inflation)
+
+    @cached_property
     def gains(self) -> ControlGains:
         """The control gains with ``"auto"`` resolved on this scenario's graph."""
         return self.control.resolve(self.adjacency, self.uavs.leader)
@@ -501,7 +514,7 @@ class Scenario(ConfigModel):
             self.uavs.count,
             np.asarray(self.target),
             self.altitude,
-            self.radar.to_radar(),
+            self.radar_model,
             rotation=math.radians(self.uavs.rotation_deg),
         )
         f.flags.writeable = False

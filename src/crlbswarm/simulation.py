@@ -27,13 +27,14 @@ from .errors import FieldError, SimulationDivergedError
 from .fisher import crlb
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
+    REPLAN_PERIOD,
     MissionConstants,
     RunInputs,
     RunOutputs,
     SceneArrays,
     run_batch,
 )
-from .planning import assign_slots, build_roadmap
+from .planning import assign_slots
 from .results import MissionResult
 from .scenario import Scenario
 from .tracking import (
@@ -151,8 +152,8 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
     )
     p0 = np.diag([est.prior_std**2] * 2 + [est.velocity_prior_std**2] * 2)
-    if sc.planner_on:
-        roadmap = build_roadmap(sc.obstacle_set, sc.route_goal, sc.route_inflation)
+    roadmap = sc.roadmap
+    if roadmap is not None:
         nodes, node_dist, next_node = roadmap.nodes, roadmap.dist_to_goal, roadmap.next_node
     else:
         nodes, node_dist, next_node = np.empty((0, 2)), np.empty(0), np.empty(0, np.int64)
@@ -174,7 +175,7 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         leader=sc.uavs.leader,
         radius=sc.formation_radius,
         altitude=sc.altitude,
-        snr_constant=float(sc.radar.to_radar().snr_constant),
+        snr_constant=float(sc.radar_model.snr_constant),
         estimate=est.enabled,
         measure_every=est.measure_every,
         safety=safety.enabled,
@@ -189,6 +190,7 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         route_x=float(sc.route_goal[0]),
         route_y=float(sc.route_goal[1]),
         carrot=sc.route_carrot,
+        replan_every=max(1, round(REPLAN_PERIOD / sc.time.step)),
     )
     return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
@@ -291,7 +293,7 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
             f"(t = {step * sc.time.step:g} s): NaN or positions beyond "
             f"{DIVERGENCE_LIMIT:g} m; check the gains and the disturbance of the scenario"
         )
-    radar = sc.radar.to_radar()
+    radar = sc.radar_model
     batch.target[lo:hi] = truth[..., :2]
     batch.crlb[lo:hi] = crlb(pos, batch.target[lo:hi], sc.altitude, radar)
     batch.centroid[lo:hi] = pos.mean(axis=-2)
@@ -384,5 +386,5 @@ def simulate(
         clearance=batch.clearance,
         separation=batch.separation,
         distance_to_go=batch.distance_to_go,
-        bound=float(crlb_bound(m_uavs, sc.altitude, sc.radar.to_radar())),
+        bound=float(crlb_bound(m_uavs, sc.altitude, sc.radar_model)),
     )
