@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pydantic import BaseModel
 
 import crlbswarm
 from crlbswarm import BUILTIN_SCENARIOS, ControlGains, EtaRule, Radar, load_scenario
@@ -104,6 +105,14 @@ def test_package_exports_resolve_and_match_the_stub():
     assert sorted(crlbswarm.__all__) == names
     for name in names:
         assert getattr(crlbswarm, name) is not None, name
+
+
+def test_every_public_module_has_an_api_page():
+    """docs/api has one page per public module (Sphinx's -n would not notice a missing one
+    unless something links to it)."""
+    pages = {p.stem for p in (ROOT / "docs" / "api").glob("crlbswarm.*.rst")}
+    modules = {f"crlbswarm.{p.stem}" for p in SRC.glob("*.py") if not p.stem.startswith("_")}
+    assert pages == modules
 
 
 def test_version_is_written_once():
@@ -220,7 +229,7 @@ def _shows(cells: list[str], default: object) -> bool:
 @pytest.mark.parametrize(
     "section",
     ["uavs", "time", "radar", "control", "disturbance", "graph", "eta", "estimation",
-     "target_motion"],
+     "target_motion", "safety", "guidance", "formation"],
 )  # fmt: skip
 def test_scenario_docs_list_every_field_with_its_default(section):
     """docs/scenarios.md has a row for each field of each table, stating its default."""
@@ -235,6 +244,22 @@ def test_scenario_docs_list_every_field_with_its_default(section):
         if default is None or default is PydanticUndefined:
             continue
         assert _shows(rows[name], default), f"[{section}] {name}: default {default!r} not shown"
+
+
+def test_every_scenario_table_is_documented():
+    """Each table of the scenario (each field whose type is a model) has its section."""
+    text = (ROOT / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    for name, info in Scenario.model_fields.items():
+        if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel):
+            assert f"### `[{name}]`" in text, name
+
+
+@pytest.mark.parametrize(("name", "heading"), [("paper", "5.1"), ("moving_target", "5.3")])
+def test_scenario_docs_print_the_builtin_files(name, heading):
+    """The files printed in docs/scenarios.md are the shipped ones, character for character."""
+    text = (ROOT / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    start = text.index("```toml\n", text.index(f"### {heading} `{name}`")) + len("```toml\n")
+    assert text[start : text.index("```\n", start)] == builtin_scenario_text(name)
 
 
 # -- built-in scenarios as packaged TOML -----------------------------------------------------

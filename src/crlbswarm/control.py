@@ -803,9 +803,9 @@ def eta_target(
     the goal is blended to 1 there:
 
     .. math:: \eta^\text{goal} \leftarrow \eta^\text{goal} + (1 - \eta^\text{goal})\,
-              \bigl(1 - w(\lVert\mathbf c - \mathbf s\rVert)\bigr),
+              \bigl(1 - \beta(\lVert\mathbf c - \mathbf s\rVert)\bigr),
 
-    with :math:`w` the smoothstep from 0 at ``HOVER_INNER`` :math:`R` to 1 at ``HOVER_OUTER``
+    with :math:`\beta` the smoothstep from 0 at ``HOVER_INNER`` :math:`R` to 1 at ``HOVER_OUTER``
     :math:`R`. The result is continuous in :math:`\mathbf c` everywhere, and exactly 1 while
     the formation hovers over the target (whose slots the scenario checks are clear);
     :func:`eta_update` rate-limits it.

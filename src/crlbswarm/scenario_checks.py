@@ -4,8 +4,13 @@
 field has passed its own check: the target and the starts must lie outside the obstacles,
 the graph must be connected, the gains must be inside the stability bounds of the linear
 laws and the step-size limits of the nonlinear ones, the target's slot formation must fit
-between the obstacles, and sensing in the loop and the target's motion must be consistent.
-Each failure raises :class:`~crlbswarm.errors.FieldError` naming the dotted field.
+between the obstacles, sensing in the loop and the target's motion must be consistent, the
+safety filter's settings must fit the formation and the starts, and with the planner on a
+route must exist for the formation's smallest footprint. Each failure raises
+:class:`~crlbswarm.errors.FieldError` naming the dotted field.
+
+:func:`convergence_estimate` and :func:`preflight` are the checks that warn instead of
+refusing: whether the mission is long enough for the formation to settle.
 """
 
 from __future__ import annotations
@@ -232,7 +237,8 @@ def convergence_estimate(scenario: Scenario) -> dict[str, float]:
     the start region at the cruise speed; settling: the steps the slower linear law needs to
     shrink its error a hundredfold (:func:`crlbswarm.graphs.settling_steps`); hold:
     ``time.hold``. Not a bound: obstacles, the eta rule and the safety filter slow the
-    formation down (the layouts of ``docs/safety.md`` settle within 1.5 times it).
+    formation down (the layouts of ``docs/safety.md`` settle, hold included, within 1.4
+    times it).
 
     Parameters
     ----------
@@ -284,12 +290,22 @@ def preflight(scenario: Scenario) -> list[str]:
     est = convergence_estimate(scenario)
     if not est["total_s"] > scenario.time.duration:  # (nan: not estimated)
         return []
+    fixes = ["lengthen time.duration"]
+    if est["travel_s"] >= est["settling_s"]:
+        fixes.append("raise control.cruise_speed")
+    else:
+        control = scenario.control
+        fixed = [n for n in ("epsilon", "gamma") if getattr(control, n) != "auto"]
+        fixes.append(
+            f'set control.{" and control.".join(fixed)} to "auto"'
+            if fixed
+            else "use a denser graph"
+        )
     return [
         f"the formation needs about {est['total_s']:.0f} s to settle (travel "
         f"{est['travel_s']:.0f} s at cruise speed, settling {est['settling_s']:.0f} s, hold "
         f"{est['hold_s']:.0f} s), more than time.duration = {scenario.time.duration:g} s: "
-        'lengthen the mission, raise control.cruise_speed, or set the gains to "auto" or use '
-        "a denser graph"
+        + " or ".join(fixes)
     ]
 
 
