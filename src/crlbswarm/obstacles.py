@@ -35,6 +35,7 @@ __all__ = [
     "circle_distance",
     "clearance_at",
     "obstacle_clearance",
+    "obstacle_distance",
     "rectangle_distance",
     "repulsion_at",
 ]
@@ -145,6 +146,18 @@ def circle_distance(x, y, cx, cy, r):
     return -r, 1.0, 0.0
 
 
+@njit(cache=True, inline="always")
+def obstacle_distance(x, y, rects, circles, k):
+    """Signed distance from (x, y) to obstacle ``k`` and the outward unit vector, the
+    obstacles numbered rectangles first, then circles (``k`` < R + C): the one place that
+    maps an obstacle's row to its shape. Compiled kernel, no checks."""
+    n_r = rects.shape[0]
+    if k < n_r:
+        return rectangle_distance(x, y, rects[k, 0], rects[k, 1], rects[k, 2], rects[k, 3])
+    c = k - n_r
+    return circle_distance(x, y, circles[c, 0], circles[c, 1], circles[c, 2])
+
+
 @njit(cache=True)
 def clearance_at(x, y, rects, circles):
     """Signed distance from (x, y) to the nearest obstacle (+inf without obstacles).
@@ -153,11 +166,8 @@ def clearance_at(x, y, rects, circles):
     :class:`Obstacles`.
     """
     best = math.inf
-    for i in range(rects.shape[0]):
-        d, _, _ = rectangle_distance(x, y, rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3])
-        best = min(best, d)
-    for i in range(circles.shape[0]):
-        d, _, _ = circle_distance(x, y, circles[i, 0], circles[i, 1], circles[i, 2])
+    for k in range(rects.shape[0] + circles.shape[0]):
+        d, _, _ = obstacle_distance(x, y, rects, circles, k)
         best = min(best, d)
     return best
 
@@ -174,15 +184,8 @@ def repulsion_at(x, y, rects, circles, gain, l_safe, max_step, inflate=0.0):
     """
     fx = 0.0
     fy = 0.0
-    n_r = rects.shape[0]
-    for i in range(n_r + circles.shape[0]):
-        if i < n_r:
-            d, ux, uy = rectangle_distance(
-                x, y, rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3]
-            )
-        else:
-            j = i - n_r
-            d, ux, uy = circle_distance(x, y, circles[j, 0], circles[j, 1], circles[j, 2])
+    for k in range(rects.shape[0] + circles.shape[0]):
+        d, ux, uy = obstacle_distance(x, y, rects, circles, k)
         d -= inflate
         if d < l_safe:
             ell = max(d, 1e-9)  # inside an obstacle: push out along the nearest face

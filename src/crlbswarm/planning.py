@@ -63,6 +63,7 @@ from .obstacles import (
     check_obstacles,
     circle_distance,
     obstacle_clearance,
+    obstacle_distance,
     rectangle_distance,
 )
 
@@ -325,13 +326,8 @@ def _visibility_edges(nodes, rects, circles, inflation):
 @njit(cache=True)
 def _obstacle_distances(x, y, rects, circles, out):
     """Signed distance from (x, y) to each obstacle, rectangles first."""
-    n_r = rects.shape[0]
-    for i in range(n_r):
-        d, _, _ = rectangle_distance(x, y, rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3])
-        out[i] = d
-    for j in range(circles.shape[0]):
-        d, _, _ = circle_distance(x, y, circles[j, 0], circles[j, 1], circles[j, 2])
-        out[n_r + j] = d
+    for k in range(rects.shape[0] + circles.shape[0]):
+        out[k] = obstacle_distance(x, y, rects, circles, k)[0]
 
 
 # ---------------------------------------------------------------------------------------

@@ -130,7 +130,7 @@ from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat
 from .errors import FieldError
 from .geometry import clip_norm
-from .obstacles import Obstacles, check_obstacles, circle_distance, rectangle_distance
+from .obstacles import Obstacles, check_obstacles, obstacle_distance
 
 __all__ = [
     "SafetyConfig",
@@ -381,15 +381,8 @@ def _pair_rows(i, q, reach, sensing_radius, decay, vmax, a, b):
 def _obstacle_rows(x, y, rects, circles, decay, margin, vmax, a, b, m):
     """Rows for the obstacles a UAV at (x, y) could reach within the step, after row m;
     returns the new number of rows."""
-    n_r = rects.shape[0]
-    for k in range(n_r + circles.shape[0]):
-        if k < n_r:
-            dist, ux, uy = rectangle_distance(
-                x, y, rects[k, 0], rects[k, 1], rects[k, 2], rects[k, 3]
-            )
-        else:
-            c = k - n_r
-            dist, ux, uy = circle_distance(x, y, circles[c, 0], circles[c, 1], circles[c, 2])
+    for k in range(rects.shape[0] + circles.shape[0]):
+        dist, ux, uy = obstacle_distance(x, y, rects, circles, k)
         rhs = -decay * (dist - margin)
         if rhs <= -vmax:
             continue  # every displacement within the speed limit satisfies it
