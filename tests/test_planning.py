@@ -397,6 +397,7 @@ def test_enclosed_target_or_start_has_no_route():
     with pytest.raises(FieldError, match="no route from the start to the target") as err:
         plan_route((-40.0, 30.0), (50.0, 0.0), walls, 2.0)
     assert err.value.field == "guidance"
+    assert "lower" not in err.value.reason  # no advice on the size: no gap at all
     with pytest.raises(FieldError, match="no route from the start to the target"):
         plan_route((50.0, 0.0), (-40.0, 30.0), walls, 2.0, field="scene")
 

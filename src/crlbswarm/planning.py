@@ -616,12 +616,13 @@ def _m(value: float) -> str:
 
 def _no_route_reason(
     start: np.ndarray, goal: np.ndarray, obs: Obstacles, infl: float, names: Sequence[str]
-) -> str:
-    """Why there is no route at ``infl`` (a route must exist at some smaller inflation)."""
+) -> str | None:
+    """Why there is no route at ``infl``, or None when there is none even at inflation 0
+    (a smaller formation would not help)."""
     lo, hi = 0.0, infl
     route = _route(build_roadmap(obs, goal, 0.0), start)
     if route is None:
-        return "no route from the start to the target: obstacles enclose one of them"
+        return None
     for _ in range(BISECTION_STEPS):
         mid = 0.5 * (lo + hi)
         found = _route(build_roadmap(obs, goal, mid), start)
@@ -667,11 +668,11 @@ def plan_route(
     The first segment follows the rule of :func:`next_waypoint` (a start closer than
     ``inflation`` to an obstacle may leave it, not go deeper). Without a route, the
     diagnosis is: the target closer than ``inflation`` to an obstacle; no route even at
-    inflation 0 (``"no route from the start to the target"``: the start or the target is
-    enclosed); else the largest inflation with a route is found by bisection
-    (:data:`BISECTION_STEPS` steps) and the narrowest passage between two obstacles that
-    the route at that inflation goes through is named, with its width and the width the
-    formation needs, ``2 x inflation``.
+    inflation 0 (``"no route from the start to the target, even for a point"``: the start
+    or the target is enclosed, and ``hint`` is left out); else the largest inflation with a
+    route is found by bisection (:data:`BISECTION_STEPS` steps) and the narrowest passage
+    between two obstacles that the route at that inflation goes through is named, with its
+    width and the width the formation needs, ``2 x inflation``.
 
     Parameters
     ----------
@@ -726,7 +727,14 @@ def plan_route(
         )
     route = _route(build_roadmap(obs, goal, infl), start)
     if route is None:
-        raise FieldError(field, _no_route_reason(start, goal, obs, infl, labels) + tail)
+        reason = _no_route_reason(start, goal, obs, infl, labels)
+        if reason is None:  # no advice about the formation's size can help
+            raise FieldError(
+                field,
+                "no route from the start to the target, even for a point: obstacles enclose "
+                "one of them",
+            )
+        raise FieldError(field, reason + tail)
     return route
 
 
