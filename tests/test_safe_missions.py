@@ -32,9 +32,11 @@ from crlbswarm import (
 from crlbswarm.cli import main
 from crlbswarm.control import HOVER_INNER
 from crlbswarm.graphs import Adjacency, communication_graph
+from crlbswarm.mission_kernel import passed_nodes
 
 LAYOUTS = sorted((Path(__file__).resolve().parents[1] / "benchmarks" / "layouts").glob("*.toml"))
 SEEDS = range(4)
+LAYOUTS_BY_NAME = {p.stem: p for p in LAYOUTS}
 
 
 def paper_data(**changes: dict) -> dict:
@@ -341,3 +343,103 @@ def test_simulate_warns_before_a_mission_too_short(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.splitlines()[0].startswith("crlbswarm: warning: the formation needs about")
     assert math.isfinite(float(err.split("about ")[1].split(" s")[0]))
+
+
+# -- settings that cannot work, found by fuzzing ------------------------------------------------
+def test_explicit_starts_inside_the_margin_are_refused():
+    """Starts exactly min_separation apart sit inside the margin the filter keeps against the
+    disturbance: refused. Without disturbance the margin is a thousandth of the separation."""
+    data = paper_data()
+    data["uavs"] = {"count": 6, "start": [[1.1 * i, 0.0] for i in range(6)]}
+    data["uavs"]["start"][1] = [1.0, 0.0]
+    with pytest.raises(ScenarioError, match=r"uavs\.start: UAVs 0 and 1 start 1 m apart.*margin"):
+        Scenario.from_dict(data)
+    data["disturbance"] = {"sigma": 0.0}
+    data["uavs"]["start"][1] = [1.002, 0.0]
+    assert Scenario.from_dict(data).safety_margins == (1e-3, 1e-3)
+
+
+def test_a_formation_too_tight_to_pass_between_neighbours_is_refused():
+    """16 UAVs at 5 m: F*'s side is 1.38 m, less than twice 1 m plus its margin."""
+    with pytest.raises(ScenarioError) as info:
+        Scenario.from_dict({**paper_data(uavs={"count": 16}), "altitude": 5.0})
+    assert info.value.field == "safety.min_separation"
+    assert "could not pass between two neighbours" in str(info.value)
+
+
+def test_with_eta_off_the_route_is_planned_for_the_whole_formation():
+    """eta cannot shrink: the route keeps r* + clearance from the walls, so it goes round the
+    paper's obstacles instead of into the 20 m gap, and the mission converges."""
+    sc = Scenario.from_dict(paper_data(eta={"enabled": False}, time={"duration": 250.0}))
+    assert sc.route_inflation == pytest.approx(sc.formation_radius + sc.control.safety_radius)
+    res = simulate(sc, seeds=range(3), keep_trajectories=False)
+    assert set(res.metrics["outcome"]) == {"converged"}
+
+
+def test_starts_on_both_sides_of_an_obstacle_are_refused():
+    data = paper_data()
+    start = [[25.0, 10.0], [25.0, 13.0], [25.0, 16.0], [50.0, 10.0], [50.0, 13.0], [50.0, 16.0]]
+    data["uavs"] = {"count": 6, "start": start}
+    with pytest.raises(ScenarioError, match=r"uavs\.start: UAV 0 starts behind an obstacle"):
+        Scenario.from_dict(data)
+
+
+def test_a_slot_behind_an_obstacle_as_seen_from_the_target_is_refused():
+    """The U-shaped trap at 80 m with 7 UAVs: two slots fall inside the U, clear of its walls
+    but behind its back wall as seen from the target; the followers could not get there."""
+    data = load_scenario(LAYOUTS_BY_NAME["u_trap"]).model_dump()
+    data["altitude"], data["uavs"]["count"] = 80.0, 7
+    with pytest.raises(ScenarioError, match="behind an obstacle as seen from the target") as info:
+        Scenario.from_dict(data)
+    assert info.value.field == "target"
+
+
+def test_with_estimation_the_route_goal_is_named_the_prior_mean():
+    data = load_scenario(LAYOUTS_BY_NAME["beyond_slots"]).model_dump()
+    data["estimation"]["enabled"] = True
+    with pytest.raises(ScenarioError, match=r"guidance: the prior mean of the target"):
+        Scenario.from_dict(data)
+
+
+@pytest.mark.parametrize("seed", [7, 12, 14])
+def test_a_wide_formation_rounds_the_obstacles(seed):
+    """At 80 m F* is 113 m wide: the route goes round the paper's obstacles, the eta rule
+    shrinks the formation for the route's corners, and it converges (these seeds once
+    parked with the obstacle inside the formation)."""
+    sc = Scenario.from_dict({**paper_data(time={"duration": 400.0}), "altitude": 80.0})
+    res = simulate(sc, seed=seed, keep_trajectories=False)
+    assert res.metrics["outcome"][0] == "converged"
+    assert res.metrics["min_clearance_m"][0] > 0.0
+
+
+def test_projected_coordinates_far_from_the_origin_fly():
+    """The divergence check is relative to the target, so a scene 2000 km east flies."""
+    data = paper_data()
+    shift = 2.0e6
+    data["target"][0] += shift
+    for ob in data["obstacles"]:
+        ob["x"] = [x + shift for x in ob["x"]]
+    data["uavs"]["start_region"][0] = [x + shift for x in data["uavs"]["start_region"][0]]
+    res = simulate(Scenario.from_dict(data), seed=0, keep_trajectories=False)
+    assert res.metrics["outcome"][0] == "converged"
+
+
+def test_a_zero_noise_margin_is_allowed():
+    sc = Scenario.from_dict(paper_data(safety={"noise_sigmas": 0.0}))
+    assert sc.safety_margins == (1e-3, 1e-3)
+
+
+def test_index_slots_with_the_filter_warn_before_flying():
+    sc = Scenario.from_dict(paper_data(formation={"assignment": "index"}))
+    assert any("formation.assignment" in w for w in preflight(sc))
+
+
+def test_passed_nodes_skips_the_corner_behind_the_centre():
+    """A route re-planned from a centre that hugs a corner starts at the corner's node just
+    behind it; the leader then aims through the next node, not back."""
+    nodes = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    nxt = np.array([1, 2, -1])
+    assert passed_nodes(-1.0, 0.0, 0, nodes, nxt, 8.0) == 0  # ahead
+    assert passed_nodes(1.0, 0.5, 0, nodes, nxt, 8.0) == 1  # node 0 behind; node 1 is 9 m away
+    assert passed_nodes(1.0, 0.5, 0, nodes, nxt, 10.0) == 2  # ... and behind along its leg
+    assert passed_nodes(5.0, 0.0, 0, nodes, nxt, 4.0) == 0  # node 0 behind but beyond reach

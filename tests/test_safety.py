@@ -179,13 +179,13 @@ def safe_state(rng, m, reach, margin, rects=RECTS, circles=CIRCLES, box=18.0, ga
 
 
 def kernel_step(q, d_nom, *, rects=RECTS, circles=CIRCLES, sep=SEP, radius=RADIUS,
-                decay=0.5, m_p=0.0, m_o=0.0, vmax=VSTEP):  # fmt: skip
+                decay=0.5, m_p=0.0, m_o=0.0, vmax=VSTEP, turn=0.0):  # fmt: skip
     """One call of the compiled safety_step, with work arrays sized as documented."""
     rows = max(q.shape[0] - 1 + len(rects) + len(circles), 1)
     out = np.empty_like(d_nom)
     safety_step(
         q, d_nom, out, rects, circles, sep, radius, decay, m_p, m_o, vmax,
-        np.empty((rows, 2)), np.empty(rows),
+        np.empty((rows, 2)), np.empty(rows), turn,
     )  # fmt: skip
     return out
 
@@ -711,7 +711,7 @@ def test_bad_margin_arguments_raise_one_field_error():
     for kwargs, field in [
         ({"sigma": -1.0, "decay": 0.5}, "sigma"),
         ({"sigma": 0.1, "decay": 0.0}, "decay"),
-        ({"sigma": 0.1, "decay": 0.5, "n_sigma": 0.0}, "n_sigma"),
+        ({"sigma": 0.1, "decay": 0.5, "n_sigma": -1.0}, "n_sigma"),
         ({"sigma": [0.1, 0.2], "decay": 0.5}, "sigma"),
     ]:
         with pytest.raises(FieldError) as info:
@@ -723,3 +723,55 @@ def test_an_infinite_sensing_radius_senses_everyone():
     q = np.array([[0.0, 0.0], [2.6, 0.0]])
     d = safety_filter(q, [[1.0, 0.0], [-1.0, 0.0]], **{**GOOD, "sensing_radius": math.inf})
     assert d[0, 0] < VSTEP
+
+
+# -- the way out of deadlocks (the mission kernel's turn) ----------------------------------------
+def head_on(turn, steps=400):
+    """Two UAVs that each want to reach the other's start, without disturbance: the pair's
+    smallest distance and whether they swapped sides."""
+    q = np.array([[0.0, 0.0], [6.0, 0.0]])
+    goals = q[::-1].copy()
+    none4, none3 = np.empty((0, 4)), np.empty((0, 3))
+    closest = np.inf
+    for _ in range(steps):
+        d_nom = np.clip(goals - q, -VSTEP, VSTEP)
+        q = q + kernel_step(q, d_nom, rects=none4, circles=none3, turn=turn)
+        closest = min(closest, float(np.hypot(*(q[0] - q[1]))))
+    return closest, bool(q[0, 0] > q[1, 0])
+
+
+def test_head_on_uavs_wait_for_ever_without_the_turn_and_pass_with_it():
+    """The plain QP stops a symmetric head-on pair for good (the nominal moves point straight
+    into each other's barrier); turning a blocked UAV's nominal to its right lets both
+    sidestep, pass and swap, still never closer than the separation."""
+    closest, swapped = head_on(0.0)
+    assert not swapped
+    assert closest >= SEP * (1 - 1e-12)
+    closest, swapped = head_on(safety.UNBLOCK_TURN)
+    assert swapped
+    assert closest >= SEP * (1 - 1e-12)
+
+
+def test_the_turn_changes_only_blocked_uavs_and_stays_safe():
+    """A UAV that is not blocked (its safe move advances along its nominal one by at least a
+    quarter of the nominal's length) moves exactly as with the plain QP; a blocked one moves
+    by its QP's solution for the turned nominal, which satisfies the same rows."""
+    c, s = math.cos(safety.UNBLOCK_TURN), math.sin(safety.UNBLOCK_TURN)
+    counts = np.zeros(2, dtype=int)
+    for seed in range(20):
+        rng = np.random.default_rng(900 + seed)
+        q = safe_state(rng, 10, SEP, 0.0, box=8.0)
+        d_nom = adversarial_moves(rng, q, RECTS, CIRCLES, VSTEP)
+        plain = kernel_step(q, d_nom)
+        turned = kernel_step(q, d_nom, turn=safety.UNBLOCK_TURN)
+        nom2 = np.sum(d_nom * d_nom, axis=1)
+        slow = np.sum(plain * d_nom, axis=1) < safety.BLOCKED_FRACTION * nom2
+        blocked = slow & (np.sqrt(nom2) >= safety.BLOCKED_MOVING * VSTEP)
+        counts += [blocked.sum(), (~blocked).sum()]
+        assert np.array_equal(turned[~blocked], plain[~blocked])
+        rotated = np.column_stack(
+            [c * d_nom[:, 0] + s * d_nom[:, 1], c * d_nom[:, 1] - s * d_nom[:, 0]]
+        )
+        again = kernel_step(q, rotated)
+        assert np.allclose(turned[blocked], again[blocked], rtol=0, atol=1e-12)
+    assert counts.min() > 0  # both kinds occurred

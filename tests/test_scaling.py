@@ -62,6 +62,8 @@ def test_large_swarm_mission_runs_with_exact_separation():
             "target": [0.0, 0.0],
             "uavs": {"count": n, "start_region": [[-300.0, 300.0], [-300.0, 300.0]]},
             "time": {"step": 0.1, "duration": 20.0},
+            # F*'s side is 1.11 m: a UAV passes between two neighbours at 0.5 m (with margin)
+            "safety": {"min_separation": 0.4},
         }
     )
     res = simulate(sc, seed=3)

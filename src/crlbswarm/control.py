@@ -387,9 +387,14 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sample
 @njit(cache=True)
 def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, margin,
                    lookahead, n_samples, eta_min):  # fmt: skip
-    """:func:`eta_goal` along a planned route instead of the straight line: from the centre
+    r""":func:`eta_goal` along a planned route instead of the straight line: from the centre
     through ``nodes[k]``, ``nodes[next_node[k]]``, ... to the last node (the route's goal);
-    with ``k < 0`` (the target in sight) the straight line to it. Compiled kernel."""
+    with ``k < 0`` (the target in sight) the straight line to it. The half-width at each
+    sample is the clearance of the route point itself, not the best one across the path:
+    the leader holds the centre on the route, so the formation's disc must fit there. The
+    blend to 1 near the target applies on the last leg only (before it, the route gives the
+    direction of travel, and a wide formation may still have to round a corner within
+    :math:`r^\star` of the target). Compiled kernel."""
     if k < 0 or rects.shape[0] + circles.shape[0] == 0:
         return eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead,
                         n_samples, eta_min)  # fmt: skip
@@ -401,17 +406,14 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, 
         j = i
     ahead = min(lookahead, length)
     width = math.inf
-    enough = radius + margin
     floor = margin + eta_min * radius
     for s in range(n_samples):
         t = -radius + (ahead + radius) * s / (n_samples - 1)
-        px, py, hx, hy = route_point(cx, cy, k, nodes, next_node, t)
-        if clearance_at(px, py, rects, circles) >= enough:
-            continue
-        width = min(width, corridor_width(px, py, hx, hy, radius, rects, circles))
+        px, py, _, _ = route_point(cx, cy, k, nodes, next_node, t)
+        width = min(width, clearance_at(px, py, rects, circles))
         if width <= floor:
             break
-    return eta_from_width(width, margin, radius, eta_min, math.hypot(sx - cx, sy - cy))
+    return eta_from_width(width, margin, radius, eta_min, math.inf)  # not yet on the last leg
 
 
 @njit(cache=True)

@@ -50,7 +50,7 @@ from .control import (
 from .estimation import noisy_range
 from .obstacles import clearance_at, repulsion_at
 from .planning import best_waypoint
-from .safety import safety_step
+from .safety import UNBLOCK_TURN, safety_step
 from .spatial import min_separation
 from .tracking import predict, update
 
@@ -64,13 +64,15 @@ __all__ = [
     "SceneArrays",
     "control_step",
     "leader_goal",
+    "passed_nodes",
     "run_batch",
     "run_mission",
     "sense_target",
     "steering_footprint",
 ]
 
-#: A run whose UAV has a coordinate (x or y) beyond this magnitude (m), or NaN, diverged.
+#: A run whose UAV is farther than this along x or y from the (believed) target, m, or at
+#: NaN, diverged (relative, so that projected coordinates far from the origin fly).
 DIVERGENCE_LIMIT = 1.0e6
 
 #: The route is re-planned from the formation's centre this often, s.
@@ -293,13 +295,14 @@ def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, 
         safety_step(
             q, d_work, u, scene.rects, scene.circles, const.min_separation,
             const.sensing_radius, const.decay, const.pair_margin, const.obstacle_margin,
-            const.vmax_step, a_work, b_work,
+            const.vmax_step, a_work, b_work, UNBLOCK_TURN,
         )  # fmt: skip
         for m in range(q.shape[0]):  # eq. (3) with the safe displacement (in u) as the input
             q_next[m, 0] = motion_model(q[m, 0], u[m, 0], 0.0, 0.0, dt, noise[m, 0])
             q_next[m, 1] = motion_model(q[m, 1], u[m, 1], 0.0, 0.0, dt, noise[m, 1])
     for m in range(q.shape[0]):
-        if not (abs(q_next[m, 0]) < DIVERGENCE_LIMIT and abs(q_next[m, 1]) < DIVERGENCE_LIMIT):
+        if not (abs(q_next[m, 0] - sx) < DIVERGENCE_LIMIT
+                and abs(q_next[m, 1] - sy) < DIVERGENCE_LIMIT):  # fmt: skip
             return False
     out.cost[k] = control_cost(q, q_next, delta, vref, dt, scene.indptr, scene.indices)
     consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
@@ -350,14 +353,34 @@ def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const, node, replan):
     if k < 0 or togo <= const.carrot:  # the goal in sight or near: the last leg
         togo = togo if k >= -1 else math.hypot(cx - sx, cy - sy)  # (-2: no route, unexpected)
         return sx, sy, tvx, tvy, togo, -1
+    k = passed_nodes(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
     gx, gy, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
     return gx, gy, 0.0, 0.0, togo, k
 
 
 @njit(cache=True)
+def passed_nodes(cx, cy, k, nodes, next_node, reach):
+    """The first node of the route from ``k`` on that the centre (cx, cy) has not passed: a
+    node is passed when it lies within ``reach`` of the centre and behind it along the leg
+    that leaves it (``(node - c) . (next - node) <= 0``). The route re-planned from a centre
+    that hugs an inflated corner can start at the corner's node just behind it (the next
+    node is not in sight at the full inflation); aiming through it would pull the centre
+    back."""
+    while next_node[k] >= 0:
+        j = next_node[k]
+        ax, ay = nodes[k, 0] - cx, nodes[k, 1] - cy
+        if ax * ax + ay * ay > reach * reach:
+            break
+        if ax * (nodes[j, 0] - nodes[k, 0]) + ay * (nodes[j, 1] - nodes[k, 1]) > 0.0:
+            break
+        k = j
+    return k
+
+
+@njit(cache=True)
 def run_mission(out, inp, scene, ctl, rule, const):
     """One run from ``out.q[0]`` to the end of ``inp.noise``; returns -1, or the step at
-    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`)."""
+    which a position ran away (NaN or farther than :data:`DIVERGENCE_LIMIT` from the target)."""
     k_steps = inp.noise.shape[0]
     m_uavs = out.q.shape[1]
     leader = const.leader

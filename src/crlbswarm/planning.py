@@ -661,6 +661,7 @@ def plan_route(
     names: Sequence[str] | None = None,
     field: str = "guidance",
     hint: str = DEFAULT_HINT,
+    goal_name: str = "the target",
 ) -> np.ndarray:
     """The roadmap route from ``start_xy`` to ``goal_xy`` keeping ``inflation`` from every
     obstacle, or one error line saying why there is none.
@@ -693,6 +694,8 @@ def plan_route(
         route (the scenario names its own).
     hint : str, default "lower the inflation or widen the passage"
         Advice appended to that message, after ``"; "``.
+    goal_name : str, default "the target"
+        What the goal is called in the message.
 
     Returns
     -------
@@ -716,14 +719,15 @@ def plan_route(
     obs = check_obstacles(obstacles)
     infl = _check_inflation(inflation)
     labels = _check_names(names, obs)
-    if not isinstance(field, str) or not isinstance(hint, str):
-        raise FieldError("field" if not isinstance(field, str) else "hint", "expected a str")
+    for name, text in (("field", field), ("hint", hint), ("goal_name", goal_name)):
+        if not isinstance(text, str):
+            raise FieldError(name, "expected a str")
     tail = f"; {hint}" if hint else ""
     i, d = _nearest_obstacle(goal, obs)
     if d < infl - CLEAR_TOL:
         where = f"inside {labels[i]}" if d <= 0 else f"{_m(d)} m from {labels[i]}"
         raise FieldError(
-            field, f"the target is {where}; the formation needs {_m(infl)} m around it{tail}"
+            field, f"{goal_name} is {where}; the formation needs {_m(infl)} m around it{tail}"
         )
     route = _route(build_roadmap(obs, goal, infl), start)
     if route is None:

@@ -132,7 +132,21 @@ from .errors import FieldError
 from .geometry import clip_norm
 from .obstacles import Obstacles, check_obstacles, obstacle_distance
 
+#: A UAV is blocked when its safe displacement advances along its nominal one by less than
+#: this fraction of the nominal's length...
+BLOCKED_FRACTION = 0.25
+
+#: ... and its nominal displacement is at least this fraction of the step's speed limit.
+BLOCKED_MOVING = 0.01
+
+#: How far a blocked UAV turns its nominal displacement to the right, rad (the mission
+#: kernel's ``turn`` of :func:`safety_step`).
+UNBLOCK_TURN = math.pi / 4
+
 __all__ = [
+    "BLOCKED_FRACTION",
+    "BLOCKED_MOVING",
+    "UNBLOCK_TURN",
     "SafetyConfig",
     "disturbance_margins",
     "safe_displacement",
@@ -442,32 +456,58 @@ def safe_displacement(
     dx, dy : float
         The displacement, m.
     """
-    reach = min_separation + pair_margin
-    m = _pair_rows(i, q, reach, sensing_radius, decay, vmax_step, a_work, b_work)
-    m = _obstacle_rows(
-        q[i, 0], q[i, 1], rects, circles, decay, obstacle_margin, vmax_step, a_work, b_work, m
-    )
+    m = _rows(i, q, rects, circles, min_separation, sensing_radius, decay, pair_margin,
+              obstacle_margin, vmax_step, a_work, b_work)  # fmt: skip
     dx, dy, _ = _solve_unit(d_nom[i, 0], d_nom[i, 1], a_work, b_work, m, vmax_step)
     return dx, dy
+
+
+@njit(cache=True, inline="always")
+def _rows(i, q, rects, circles, min_separation, sensing_radius, decay, pair_margin,
+          obstacle_margin, vmax_step, a_work, b_work):  # fmt: skip
+    """UAV ``i``'s rows (pairs, then obstacles) in ``a_work``, ``b_work``; their number."""
+    reach = min_separation + pair_margin
+    m = _pair_rows(i, q, reach, sensing_radius, decay, vmax_step, a_work, b_work)
+    return _obstacle_rows(
+        q[i, 0], q[i, 1], rects, circles, decay, obstacle_margin, vmax_step, a_work, b_work, m
+    )
 
 
 @njit(cache=True, error_model="numpy")
 def safety_step(
     q, d_nom, out, rects, circles, min_separation, sensing_radius, decay, pair_margin,
-    obstacle_margin, vmax_step, a_work, b_work,
+    obstacle_margin, vmax_step, a_work, b_work, turn=0.0,
 ):  # fmt: skip
-    """Every UAV's :func:`safe_displacement`, written to ``out`` (M, 2).
+    r"""Every UAV's :func:`safe_displacement`, written to ``out`` (M, 2), with an optional
+    way out of deadlocks.
+
+    With ``turn`` :math:`\theta \ne 0`, a UAV whose safe displacement is *blocked*
+    (advances along a nominal displacement of at least :data:`BLOCKED_MOVING` of the step's
+    speed limit by less than :data:`BLOCKED_FRACTION` of the nominal's length) solves its
+    QP again with the nominal turned by :math:`\theta` clockwise, to its right, and moves
+    by that solution: the
+    "right-hand rule" that lets two UAVs that meet head-on, or a cluster that jams, slide
+    past each other instead of waiting for the disturbance to free them (for ever without
+    it). The solution is safe either way (the same rows); only the nominal changes.
+    ``turn = 0`` (the default) is the plain QP of :func:`safety_filter`.
 
     Compiled kernel, no checks, allocation-free; ``out`` may be ``d_nom`` itself (each UAV
-    reads only its own nominal displacement). The arguments are those of
+    reads only its own nominal displacement). The other arguments are those of
     :func:`safe_displacement` (``a_work`` with at least ``M - 1 + R + C`` rows; scratch,
     so one pair of work arrays per thread).
     """
+    c, s = math.cos(turn), math.sin(turn)
+    moving2 = (BLOCKED_MOVING * vmax_step) ** 2
     for i in range(q.shape[0]):
-        dx, dy = safe_displacement(
-            i, q, d_nom, rects, circles, min_separation, sensing_radius, decay, pair_margin,
-            obstacle_margin, vmax_step, a_work, b_work,
-        )  # fmt: skip
+        m = _rows(i, q, rects, circles, min_separation, sensing_radius, decay, pair_margin,
+                  obstacle_margin, vmax_step, a_work, b_work)  # fmt: skip
+        nx, ny = d_nom[i, 0], d_nom[i, 1]
+        dx, dy, _ = _solve_unit(nx, ny, a_work, b_work, m, vmax_step)
+        if turn != 0.0:
+            nom2 = nx * nx + ny * ny
+            if nom2 >= moving2 and dx * nx + dy * ny < BLOCKED_FRACTION * nom2:
+                dx, dy, _ = _solve_unit(c * nx + s * ny, c * ny - s * nx, a_work, b_work, m,
+                                        vmax_step)  # fmt: skip
         out[i, 0] = dx
         out[i, 1] = dy
 
@@ -519,7 +559,7 @@ def disturbance_margins(sigma: float, decay: float, n_sigma: float = 6.0) -> tup
     decay : float
         Barrier decay rate :math:`\gamma \in (0, 1]`.
     n_sigma : float, default 6
-        Standard deviations of margin, > 0.
+        Standard deviations of margin, >= 0 (0: no margin).
 
     Returns
     -------
@@ -536,7 +576,9 @@ def disturbance_margins(sigma: float, decay: float, n_sigma: float = 6.0) -> tup
     if s < 0:
         raise FieldError("sigma", f"must be >= 0, got {sigma!r}")
     rate = _decay(decay)
-    k = _v.positive_scalar(n_sigma, "n_sigma")
+    k = _v.scalar(n_sigma, "n_sigma")
+    if k < 0:
+        raise FieldError("n_sigma", f"must be >= 0, got {n_sigma!r}")
     spread = s / math.sqrt(1.0 - (1.0 - rate) ** 2)
     return k * math.sqrt(2.0) * spread, k * spread
 
@@ -663,8 +705,8 @@ class SafetyConfig(ConfigModel):
     )
     sensing_radius: PositiveFloat | None = Field(
         None,
-        description="a UAV avoids the UAVs within this distance, m (default: 3 min_separation "
-        "+ 2 max_speed time.step)",
+        description="a UAV avoids the UAVs within this distance, m (default: 2 min_separation "
+        "+ max(min_separation, pair margin) + 2 max_speed time.step)",
     )
     decay: Annotated[float, Field(gt=0, le=1)] = Field(
         0.5, description="rate of the barrier, in (0, 1]: the allowed approach per step"
@@ -673,13 +715,17 @@ class SafetyConfig(ConfigModel):
         6.0, description="margin kept against the motion disturbance, in its standard deviations"
     )
 
-    def radius_for(self, dt: float) -> float:
-        """The sensing radius: as given, or its default for the time step ``dt``.
+    def radius_for(self, dt: float, pair_margin: float = 0.0) -> float:
+        r"""The sensing radius: as given, or its default for the time step ``dt``,
+        :math:`2d_{\min} + \max(d_{\min}, m_p) + 2v_{\max}\Delta T` (:math:`3d_{\min} +
+        2v_{\max}\Delta T` unless the pair margin is larger than :math:`d_{\min}`).
 
         Parameters
         ----------
         dt : float
             Time step, s.
+        pair_margin : float, default 0
+            The pair margin :math:`m_p` against the disturbance, m.
 
         Returns
         -------
@@ -688,4 +734,5 @@ class SafetyConfig(ConfigModel):
         """
         if self.sensing_radius is not None:
             return self.sensing_radius
-        return 3.0 * self.min_separation + 2.0 * self.max_speed * dt
+        d_min = self.min_separation
+        return 2.0 * d_min + max(d_min, pair_margin) + 2.0 * self.max_speed * dt

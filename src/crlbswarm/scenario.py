@@ -71,6 +71,10 @@ MAX_STEPS = 10_000_000
 #: Largest distance of the prior mean from the truth, in prior standard deviations.
 MAX_PRIOR_SIGMAS = 5.0
 
+#: Smallest margin of the safety filter (pair and obstacle), as a fraction of
+#: ``safety.min_separation`` (:attr:`Scenario.safety_margins`).
+MIN_MARGIN = 1e-3
+
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
@@ -420,9 +424,14 @@ class Scenario(ConfigModel):
     @cached_property
     def safety_margins(self) -> tuple[float, float]:
         """Margins of the safety filter against the motion disturbance, m: (between two UAVs,
-        from an obstacle) (:func:`crlbswarm.safety.disturbance_margins`)."""
+        from an obstacle) (:func:`crlbswarm.safety.disturbance_margins`), each at least
+        ``MIN_MARGIN`` times ``safety.min_separation``: without one (no disturbance, or
+        ``noise_sigmas = 0``) a UAV pushed toward an obstacle for long halves its clearance
+        every step until it rounds to zero."""
         s = self.safety
-        return disturbance_margins(self.disturbance.sigma, s.decay, s.noise_sigmas)
+        pair, obstacle = disturbance_margins(self.disturbance.sigma, s.decay, s.noise_sigmas)
+        floor = MIN_MARGIN * s.min_separation
+        return max(pair, floor), max(obstacle, floor)
 
     @property
     def start_separation(self) -> float:
@@ -444,10 +453,12 @@ class Scenario(ConfigModel):
     @cached_property
     def eta_rule(self) -> EtaRule:
         """The eta rule as flown: with the safety filter on, its ``minimum`` is raised (if
-        needed) so that the smallest formation's side keeps ``start_separation``."""
+        needed) so that the smallest formation's side is twice ``start_separation``: a UAV
+        can pass between two neighbours at any scale, and the shrunk polygon keeps room to
+        move (with its sides at the separation the pair barriers would hold it rigid)."""
         if not self.safety.enabled:
             return self.eta
-        floor = self.start_separation * (1.0 + 1e-6) / self.formation_side
+        floor = 2.0 * self.start_separation * (1.0 + 1e-6) / self.formation_side
         return (
             self.eta
             if floor <= self.eta.minimum
@@ -461,7 +472,8 @@ class Scenario(ConfigModel):
         clearance = self.guidance.clearance
         if clearance is None:
             clearance = self.control.safety_radius
-        return self.eta_rule.minimum * self.formation_radius + clearance
+        smallest = self.eta_rule.minimum if self.eta.enabled else 1.0  # eta off: never shrinks
+        return smallest * self.formation_radius + clearance
 
     @property
     def route_carrot(self) -> float:

@@ -23,7 +23,7 @@ import numpy as np
 from .errors import FieldError
 from .graphs import Adjacency, formation_step_limit, settling_steps
 from .obstacles import Obstacles, obstacle_clearance
-from .planning import plan_route
+from .planning import plan_route, segment_clear
 
 if TYPE_CHECKING:
     from .scenario import Scenario
@@ -65,11 +65,16 @@ def check_scenario(scenario: Scenario) -> None:
     clearance = obstacle_clearance(scenario.slots, obstacles) if obstacles.count else None
     if clearance is not None and np.any(clearance <= scenario.control.safety_radius):
         m = int(np.argmin(clearance))
+        where = (
+            "inside an obstacle"
+            if clearance[m] <= 0
+            else f"{clearance[m]:.3g} m from an obstacle, within control.safety_radius = "
+            f"{scenario.control.safety_radius:g} m"
+        )
         raise FieldError(
             "target",
-            f"the slot of UAV {m} in F* over the target is {clearance[m]:.3g} m from an "
-            f"obstacle, within control.safety_radius = {scenario.control.safety_radius:g} m: "
-            "the formation could never settle there",
+            f"the slot of UAV {m} in F* over the target is {where}: the formation could "
+            "never settle there",
         )
     _check_safety(scenario)
     _check_route(scenario)
@@ -88,19 +93,26 @@ def _check_safety(scenario: Scenario) -> None:
             "leader could not fly its own reference",
         )
     need, side = scenario.start_separation, scenario.formation_side
-    if need >= side:
+    if 2.0 * need > side:
+        why = (
+            "the formation itself would break it"
+            if need >= side
+            else "a UAV could not pass between two neighbours in their slots (the formation "
+            "could lock up)"
+        )
         raise FieldError(
             "safety.min_separation",
             f"{safety.min_separation:g} m (plus a margin of {need - safety.min_separation:.3g} m "
-            f"against the disturbance) is not below the side of F*, {side:.4g} m: the "
-            "formation itself would break it",
+            f"against the disturbance) is more than half the side of F*, {side:.4g} m: {why}; "
+            "lower it, fly higher (a larger F*) or use fewer UAVs",
         )
     dt = scenario.time.step
     reach = need + 2.0 * safety.max_speed * dt
-    if safety.radius_for(dt) < reach:
+    radius = safety.radius_for(dt, scenario.safety_margins[0])
+    if radius < reach:
         raise FieldError(
             "safety.sensing_radius",
-            f"{safety.radius_for(dt):g} m is too short: two UAVs farther apart could close "
+            f"{radius:g} m is too short: two UAVs farther apart could close "
             f"the gap in one step; it must be at least {reach:.4g} m (min_separation, its "
             "margin and 2 max_speed time.step)",
         )
@@ -109,11 +121,12 @@ def _check_safety(scenario: Scenario) -> None:
         gaps = np.hypot(*(start[:, None] - start[None, :]).transpose(2, 0, 1))
         np.fill_diagonal(gaps, math.inf)
         i, j = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
-        if gaps[i, j] < safety.min_separation:
+        if gaps[i, j] < need:
             raise FieldError(
                 "uavs.start",
-                f"UAVs {min(i, j)} and {max(i, j)} start {gaps[i, j]:.3g} m apart, closer "
-                f"than safety.min_separation = {safety.min_separation:g} m",
+                f"UAVs {min(i, j)} and {max(i, j)} start {gaps[i, j]:.4g} m apart, closer than "
+                f"safety.min_separation = {safety.min_separation:g} m plus its margin against "
+                f"the disturbance ({need:.4g} m in all)",
             )
     elif scenario.uavs.start_region is not None:
         (x0, x1), (y0, y1) = scenario.uavs.start_region
@@ -127,19 +140,48 @@ def _check_safety(scenario: Scenario) -> None:
 
 
 def _check_route(scenario: Scenario) -> None:
-    """With the planner on, a route for the formation's smallest footprint must exist."""
+    """With the planner on: the UAVs can gather, a route for the formation's smallest
+    footprint exists, and every slot can be reached from the target as the formation opens
+    up there (the followers have no planner of their own)."""
     if not scenario.planner_on:
         return
+    obstacles = scenario.obstacle_set
     start = _start_centre(scenario)
+    if scenario.uavs.start is not None:
+        for m, (x, y) in enumerate(scenario.uavs.start):
+            if not segment_clear(x, y, start[0], start[1], obstacles.rectangles,
+                                 obstacles.circles, 0.0):  # fmt: skip
+                raise FieldError(
+                    "uavs.start",
+                    f"UAV {m} starts behind an obstacle as seen from the middle of the starts "
+                    f"({start[0]:.4g}, {start[1]:.4g}), where the formation gathers: move the "
+                    "starts to one side of the obstacles",
+                )
     kinds = [type(ob).__name__ for ob in scenario.obstacles]
     order = [i for i, k in enumerate(kinds) if k == "RectangleObstacle"]
     order += [i for i, k in enumerate(kinds) if k != "RectangleObstacle"]
+    shrink = "lower eta.minimum" if scenario.eta.enabled else "switch [eta] on"
+    goal = "the target"
+    if scenario.estimation.enabled:
+        goal = "the prior mean of the target (target + estimation.prior_offset)"
     plan_route(
-        start, scenario.route_goal, scenario.obstacle_set, scenario.route_inflation,
-        names=[f"obstacles[{i}]" for i in order], field="guidance",
-        hint="lower eta.minimum or guidance.clearance, widen the passage, or lower the "
-        "altitude (a smaller F*)",
+        start, scenario.route_goal, obstacles, scenario.route_inflation,
+        names=[f"obstacles[{i}]" for i in order], field="guidance", goal_name=goal,
+        hint=f"{shrink} or guidance.clearance, widen the passage, or lower the altitude (a "
+        "smaller F*)",
     )  # fmt: skip
+    target = np.asarray(scenario.target, dtype=float)
+    l_safe = scenario.control.safety_radius
+    for m, (x, y) in enumerate(scenario.slots):
+        if not segment_clear(target[0], target[1], x, y, obstacles.rectangles,
+                             obstacles.circles, l_safe):  # fmt: skip
+            raise FieldError(
+                "target",
+                f"the slot of UAV {m} in F* is behind an obstacle as seen from the target "
+                f"(the segment between them passes within control.safety_radius = {l_safe:g} "
+                "m of it): the formation opens up over the target and could not reach it; "
+                "move the target, rotate F* (uavs.rotation_deg) or change the altitude",
+            )
 
 
 def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:
@@ -274,8 +316,9 @@ def convergence_estimate(scenario: Scenario) -> dict[str, float]:
 def preflight(scenario: Scenario) -> list[str]:
     """Warnings before flying: what a valid scenario may still fail at.
 
-    Today one: the estimated time to settle (:func:`convergence_estimate`) exceeds the
-    mission's duration.
+    The estimated time to settle (:func:`convergence_estimate`) exceeds the mission's
+    duration; or the UAVs keep the paper's slots by index with the safety filter on (their
+    paths to the slots cross, and a crowd can lock up while the filter keeps them apart).
 
     Parameters
     ----------
@@ -287,9 +330,16 @@ def preflight(scenario: Scenario) -> list[str]:
     list of str
         One line per warning (empty if none).
     """
+    out = []
+    if scenario.safety.enabled and scenario.formation.assignment == "index":
+        out.append(
+            'formation.assignment = "index" with the safety filter on: the UAVs\' paths to '
+            "their slots cross, and a crowd can lock up while the filter keeps them apart; "
+            '"optimal" assigns the slots without crossings'
+        )
     est = convergence_estimate(scenario)
     if not est["total_s"] > scenario.time.duration:  # (nan: not estimated)
-        return []
+        return out
     fixes = ["lengthen time.duration"]
     if est["travel_s"] >= est["settling_s"]:
         fixes.append("raise control.cruise_speed")
@@ -301,12 +351,13 @@ def preflight(scenario: Scenario) -> list[str]:
             if fixed
             else "use a denser graph"
         )
-    return [
+    out.append(
         f"the formation needs about {est['total_s']:.0f} s to settle (travel "
         f"{est['travel_s']:.0f} s at cruise speed, settling {est['settling_s']:.0f} s, hold "
         f"{est['hold_s']:.0f} s), more than time.duration = {scenario.time.duration:g} s: "
         + " or ".join(fixes)
-    ]
+    )
+    return out
 
 
 def _start_centre(scenario: Scenario) -> np.ndarray:

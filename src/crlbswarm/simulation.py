@@ -180,7 +180,7 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         measure_every=est.measure_every,
         safety=safety.enabled,
         min_separation=safety.min_separation,
-        sensing_radius=safety.radius_for(sc.time.step),
+        sensing_radius=safety.radius_for(sc.time.step, sc.safety_margins[0]),
         decay=safety.decay,
         pair_margin=pair_margin,
         obstacle_margin=obstacle_margin,
@@ -290,8 +290,8 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
         step = int(status[bad[0]])
         raise SimulationDivergedError(
             f"run {b} (seed {seeds[bad[0]]}) diverged at step {step} "
-            f"(t = {step * sc.time.step:g} s): NaN or positions beyond "
-            f"{DIVERGENCE_LIMIT:g} m; check the gains and the disturbance of the scenario"
+            f"(t = {step * sc.time.step:g} s): NaN or a UAV more than {DIVERGENCE_LIMIT:g} m "
+            "from the target; check the gains and the disturbance of the scenario"
         )
     radar = sc.radar_model
     batch.target[lo:hi] = truth[..., :2]
