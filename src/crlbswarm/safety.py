@@ -111,6 +111,13 @@ stationary standard deviation is :math:`\operatorname{sd}(w)/\sqrt{1 - (1-\gamma
 margins of :math:`n_\sigma` such deviations are crossed with probability about
 :math:`\Phi(-n_\sigma)` per step (about 1e-9 for the default 6).
 
+**Deadlocks.** The filter alone can stop UAVs for good (two head-on, three pressed into
+a triangle: every nominal points into a barrier). The mission kernel calls
+:func:`safety_step` with ``turn`` = :data:`UNBLOCK_TURN`: a UAV whose safe move hardly
+advances along its nominal one solves its QP again with the nominal turned to its right
+(the right-hand rule), which is as safe (the same rows) and lets such UAVs slide past
+each other. :func:`safety_filter` is the plain QP.
+
 The law is written once per piece as a compiled kernel (:func:`solve_qp2`,
 :func:`safe_displacement`, :func:`safety_step`, called by the mission kernel) and wrapped
 by the public, validated, batched :func:`safety_filter`.
