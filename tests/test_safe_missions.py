@@ -195,6 +195,7 @@ def test_converged_needs_the_hold_and_a_short_mission_is_a_timeout():
         ({"uavs": {"start_region": [[0.0, 1.0], [0.0, 1.0]]}}, "uavs.start_region", "small"),
         ({"formation": {"assignment": "nearest"}}, "formation.assignment", "optimal"),
         ({"control": {"epsilon": "fast"}}, "control.epsilon", "auto"),
+        ({"time": {"hold": 150.0}}, "time.hold", "shorter than time.duration"),
     ],
 )
 def test_contradictory_safety_settings_are_one_line_errors(changes, field, words):
@@ -443,3 +444,33 @@ def test_passed_nodes_skips_the_corner_behind_the_centre():
     assert passed_nodes(1.0, 0.5, 0, nodes, nxt, 8.0) == 1  # node 0 behind; node 1 is 9 m away
     assert passed_nodes(1.0, 0.5, 0, nodes, nxt, 10.0) == 2  # ... and behind along its leg
     assert passed_nodes(5.0, 0.0, 0, nodes, nxt, 4.0) == 0  # node 0 behind but beyond reach
+
+
+def test_a_fast_leader_does_not_aim_across_a_walls_end():
+    """A pocket open to the east, entered from the north-west at 4 m/s: the carrot (16 m
+    ahead) would aim across the end of the north wall; it is pulled back to the farthest
+    route point in sight, and a route that keeps only 0.1 m of clearance is not fought by
+    the leader's steering (found by fuzzing: every run stuck at the corner)."""
+    data = paper_data(control={"cruise_speed": 4.0}, safety={"max_speed": 9.0},
+                      guidance={"clearance": 0.1}, time={"duration": 110.0})  # fmt: skip
+    data.update(altitude=5.0, target=[0.0, 0.0])
+    data["uavs"]["start_region"] = [[-82.7, -65.4], [37.4, 54.6]]
+    data["obstacles"] = [
+        {"type": "rectangle", "x": [-26.73, -24.1], "y": [-26.73, 26.73]},
+        {"type": "rectangle", "x": [-26.73, 26.73], "y": [-26.73, -24.1]},
+        {"type": "rectangle", "x": [-26.73, 26.73], "y": [24.1, 26.73]},
+    ]
+    sc = Scenario.from_dict(data)
+    assert sc.steering_radius == 0.1
+    res = simulate(sc, seeds=range(3), keep_trajectories=False)
+    assert set(res.metrics["outcome"]) == {"converged"}
+    assert res.metrics["min_clearance_m"].min() > 0.0
+
+
+def test_with_the_planner_eta_starts_at_its_goal():
+    """The paper's rule starts at 1; with the planner the formation forms at the scale its
+    surroundings allow (the paper's gap is within the lookahead of the start)."""
+    assert simulate(load_scenario("paper"), seed=0).eta[0, 0] == 1.0
+    safe = simulate(load_scenario("paper_safe"), seed=0)
+    assert safe.eta[0, 0] < 0.5
+    assert safe.eta[0, -1] == 1.0

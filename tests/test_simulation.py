@@ -600,7 +600,7 @@ def divergence_dict(sigma: float, duration: float = 0.1, **uavs) -> dict:
         "altitude": 20.0,
         "target": [-100.0, 15.0],
         "uavs": {"count": 6, **uavs},
-        "time": {"step": 0.1, "duration": duration},
+        "time": {"step": 0.1, "duration": duration, "hold": duration / 2},
         "disturbance": {"sigma": sigma},
         "obstacles": [{"type": "rectangle", "x": [30.0, 45.0], "y": [0.0, 34.0]}],
         **PAPER_LAWS,

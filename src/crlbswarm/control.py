@@ -78,6 +78,7 @@ __all__ = [
     "repulsion",
     "route_eta_goal",
     "route_point",
+    "smoothstep",
     "travel_weight",
 ]
 
@@ -252,6 +253,10 @@ LATERAL_SAMPLES = 9
 HOVER_INNER = 0.25
 HOVER_OUTER = 1.0
 
+#: With the planner, the eta rule along the route blends to 1 only on arrival, from this
+#: many formation radii to HOVER_INNER (:func:`route_eta_goal`).
+ARRIVAL_OUTER = 0.5
+
 
 # ---------------------------------------------------------------------------------------
 # Compiled laws on one formation (called by the public functions and the mission kernel)
@@ -331,14 +336,19 @@ def corridor_width(px, py, hx, hy, radius, rects, circles):
 
 
 @njit(cache=True, inline="always")
+def smoothstep(t):
+    """0 for t <= 0, 1 for t >= 1, and :math:`3t^2 - 2t^3` in between."""
+    if t >= 1.0:
+        return 1.0
+    return 0.0 if t <= 0.0 else t * t * (3.0 - 2.0 * t)
+
+
+@njit(cache=True, inline="always")
 def travel_weight(dist, radius):
     """1 while the formation travels, 0 while it hovers over the target (``dist`` away): a
     smoothstep from ``HOVER_INNER`` to ``HOVER_OUTER`` formation radii. The travelling
     layers (the eta rule, the leader's steering) fade out with it over the target."""
-    t = (dist - HOVER_INNER * radius) / ((HOVER_OUTER - HOVER_INNER) * radius)
-    if t >= 1.0:
-        return 1.0
-    return 0.0 if t <= 0.0 else t * t * (3.0 - 2.0 * t)
+    return smoothstep((dist - HOVER_INNER * radius) / ((HOVER_OUTER - HOVER_INNER) * radius))
 
 
 @njit(cache=True, inline="always")
@@ -386,34 +396,49 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sample
 
 @njit(cache=True)
 def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, margin,
-                   lookahead, n_samples, eta_min):  # fmt: skip
-    r""":func:`eta_goal` along a planned route instead of the straight line: from the centre
-    through ``nodes[k]``, ``nodes[next_node[k]]``, ... to the last node (the route's goal);
-    with ``k < 0`` (the target in sight) the straight line to it. The half-width at each
-    sample is the clearance of the route point itself, not the best one across the path:
-    the leader holds the centre on the route, so the formation's disc must fit there. The
-    blend to 1 near the target applies on the last leg only (before it, the route gives the
-    direction of travel, and a wide formation may still have to round a corner within
-    :math:`r^\star` of the target). Compiled kernel."""
-    if k < 0 or rects.shape[0] + circles.shape[0] == 0:
+                   lookahead, n_samples, eta_min, planned=False):  # fmt: skip
+    r"""The eta goal as flown: :func:`eta_goal` (the straight line to the target, the best
+    point across it) without the planner (``planned`` False); with it, the scale at which
+    the formation's disc fits at the points of its route itself: from the centre through
+    ``nodes[k]``, ``nodes[next_node[k]]``, ... (or, with ``k < 0``, the target in sight,
+    the straight line to it), from ``radius`` behind to ``lookahead`` ahead. The leader
+    holds the centre on the route, so the half-width at a sample is that point's own
+    clearance. The goal is blended to 1 only on arrival, from ``ARRIVAL_OUTER`` radii to
+    ``HOVER_INNER`` radii of the target and exactly 1 within (where the formation opens up
+    along the segments from the target to its slots, which the scenario checks are clear):
+    a wide formation may still have to round an obstacle within :math:`r^\star` of the
+    target. Compiled kernel."""
+    if not planned or rects.shape[0] + circles.shape[0] == 0:
         return eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead,
                         n_samples, eta_min)  # fmt: skip
-    length = math.hypot(nodes[k, 0] - cx, nodes[k, 1] - cy)  # the route's length ahead
-    j = k
-    while next_node[j] >= 0 and length < lookahead:
-        i = next_node[j]
-        length += math.hypot(nodes[i, 0] - nodes[j, 0], nodes[i, 1] - nodes[j, 1])
-        j = i
+    dist = math.hypot(sx - cx, sy - cy)
+    if k >= 0:
+        length = math.hypot(nodes[k, 0] - cx, nodes[k, 1] - cy)  # the route's length ahead
+        j = k
+        while next_node[j] >= 0 and length < lookahead:
+            i = next_node[j]
+            length += math.hypot(nodes[i, 0] - nodes[j, 0], nodes[i, 1] - nodes[j, 1])
+            j = i
+    else:
+        length = dist
+    hx, hy = ((sx - cx) / dist, (sy - cy) / dist) if dist > 0.0 else (1.0, 0.0)
     ahead = min(lookahead, length)
     width = math.inf
     floor = margin + eta_min * radius
     for s in range(n_samples):
         t = -radius + (ahead + radius) * s / (n_samples - 1)
-        px, py, _, _ = route_point(cx, cy, k, nodes, next_node, t)
+        if k >= 0:
+            px, py, _, _ = route_point(cx, cy, k, nodes, next_node, t)
+        else:
+            px, py = cx + t * hx, cy + t * hy
         width = min(width, clearance_at(px, py, rects, circles))
         if width <= floor:
             break
-    return eta_from_width(width, margin, radius, eta_min, math.inf)  # not yet on the last leg
+    goal = min(1.0, max(eta_min, (width - margin) / radius))
+    if k < 0:  # arrival: 1 within HOVER_INNER radii, the route's rule from ARRIVAL_OUTER out
+        w = smoothstep((dist - HOVER_INNER * radius) / ((ARRIVAL_OUTER - HOVER_INNER) * radius))
+        goal += (1.0 - goal) * (1.0 - w)
+    return goal
 
 
 @njit(cache=True)

@@ -49,12 +49,13 @@ from .control import (
 )
 from .estimation import noisy_range
 from .obstacles import clearance_at, repulsion_at
-from .planning import best_waypoint
+from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
 from .spatial import min_separation
 from .tracking import predict, update
 
 __all__ = [
+    "CARROT_BISECTIONS",
     "DIVERGENCE_LIMIT",
     "FILTER_ITERATIONS",
     "REPLAN_PERIOD",
@@ -62,6 +63,7 @@ __all__ = [
     "RunInputs",
     "RunOutputs",
     "SceneArrays",
+    "carrot_point",
     "control_step",
     "leader_goal",
     "passed_nodes",
@@ -74,6 +76,9 @@ __all__ = [
 #: A run whose UAV is farther than this along x or y from the (believed) target, m, or at
 #: NaN, diverged (relative, so that projected coordinates far from the origin fly).
 DIVERGENCE_LIMIT = 1.0e6
+
+#: Bisection steps of the carrot that would cut a corner (:func:`carrot_point`).
+CARROT_BISECTIONS = 8
 
 #: The route is re-planned from the formation's centre this often, s.
 REPLAN_PERIOD = 0.5
@@ -127,6 +132,9 @@ class MissionConstants(NamedTuple):
         How far ahead along the route the leader aims, m.
     replan_every : int
         The route is re-planned from the centre every this many steps.
+    steer_radius : float
+        :math:`l_\text{safe}` of the leader's steering (the repulsion felt by the
+        formation's disc), m: ``Scenario.steering_radius``.
     """
 
     dt: float
@@ -149,6 +157,7 @@ class MissionConstants(NamedTuple):
     route_y: float
     carrot: float
     replan_every: int
+    steer_radius: float
 
 
 class SceneArrays(NamedTuple):
@@ -310,6 +319,7 @@ def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, 
         goal = route_eta_goal(
             cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
             scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum,
+            const.planner,
         )  # fmt: skip
         out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * dt)
     else:
@@ -354,8 +364,30 @@ def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const, node, replan):
         togo = togo if k >= -1 else math.hypot(cx - sx, cy - sy)  # (-2: no route, unexpected)
         return sx, sy, tvx, tvy, togo, -1
     k = passed_nodes(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
-    gx, gy, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
+    gx, gy = carrot_point(cx, cy, k, scene, const)
     return gx, gy, 0.0, 0.0, togo, k
+
+
+@njit(cache=True)
+def carrot_point(cx, cy, k, scene, const):
+    """The point ``const.carrot`` ahead of the centre along the route through ``nodes[k]``,
+    or, if the straight segment to it would pass within half the route's inflation of an
+    obstacle (the carrot cutting a corner), the farthest point before it that does not
+    (bisection, :data:`CARROT_BISECTIONS` steps): the leader never aims across a corner."""
+    gx, gy, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, const.carrot)
+    keep = 0.5 * const.inflation
+    if segment_clear(cx, cy, gx, gy, scene.rects, scene.circles, keep):
+        return gx, gy
+    lo, hi = 0.0, const.carrot
+    for _ in range(CARROT_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        px, py, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, mid)
+        if segment_clear(cx, cy, px, py, scene.rects, scene.circles, keep):
+            lo = mid
+        else:
+            hi = mid
+    gx, gy, _, _ = route_point(cx, cy, k, scene.nodes, scene.next_node, lo)
+    return gx, gy
 
 
 @njit(cache=True)
@@ -422,10 +454,16 @@ def run_mission(out, inp, scene, ctl, rule, const):
         gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
             cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
         )
+        if k == 0 and const.planner and rule.enabled:  # the formation forms at its goal's
+            eta = route_eta_goal(  # scale (the paper's rule starts at 1)
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
+                scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+            )  # fmt: skip
+            out.eta[0] = eta
         vref[0], vref[1] = reference_velocity(
             q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],
             gy + eta * inp.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
-            fvx, fvy, scene.rects, scene.circles, ctl.repulsion_gain, ctl.safety_radius,
+            fvx, fvy, scene.rects, scene.circles, ctl.repulsion_gain, const.steer_radius,
             steering_footprint(eta, cx, cy, sx, sy, ctl, const), const.dt,
         )  # fmt: skip
         out.v_ref[k, 0] = vref[0]

@@ -189,6 +189,16 @@ class TimeConfig(ConfigModel):
                 raise ValueError(f"is {n:.3g} steps of {step:g} s; at most {MAX_STEPS:g} allowed")
         return duration
 
+    @model_validator(mode="after")
+    def _hold_fits(self) -> TimeConfig:
+        if self.hold >= self.duration:
+            raise FieldError(
+                "time.hold",
+                f"{self.hold:g} s is not shorter than time.duration = {self.duration:g} s: no "
+                "run could end converged; lower time.hold or lengthen the mission",
+            )
+        return self
+
     @property
     def steps(self) -> int:
         """Number of steps K."""
@@ -466,14 +476,27 @@ class Scenario(ConfigModel):
         )
 
     @property
+    def route_clearance(self) -> float:
+        """``guidance.clearance``, or ``control.safety_radius`` when unset, m."""
+        clearance = self.guidance.clearance
+        return self.control.safety_radius if clearance is None else clearance
+
+    @property
     def route_inflation(self) -> float:
         """How far the route of the formation's centre keeps from every obstacle: the radius
-        of its smallest disc plus ``guidance.clearance``, m."""
-        clearance = self.guidance.clearance
-        if clearance is None:
-            clearance = self.control.safety_radius
+        of its smallest disc plus :attr:`route_clearance`, m."""
         smallest = self.eta_rule.minimum if self.eta.enabled else 1.0  # eta off: never shrinks
-        return smallest * self.formation_radius + clearance
+        return smallest * self.formation_radius + self.route_clearance
+
+    @property
+    def steering_radius(self) -> float:
+        """:math:`l_\text{safe}` of the leader's steering, m: ``control.safety_radius``, or
+        with the planner on at most :attr:`route_clearance`, so that the steering does not
+        push the formation off a route that keeps that clearance (at a corner the two would
+        balance and hold the formation still)."""
+        if self.planner_on:
+            return min(self.control.safety_radius, self.route_clearance)
+        return self.control.safety_radius
 
     @property
     def route_carrot(self) -> float:

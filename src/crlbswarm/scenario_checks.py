@@ -102,9 +102,10 @@ def _check_safety(scenario: Scenario) -> None:
         )
         raise FieldError(
             "safety.min_separation",
-            f"{safety.min_separation:g} m (plus a margin of {need - safety.min_separation:.3g} m "
-            f"against the disturbance) is more than half the side of F*, {side:.4g} m: {why}; "
-            "lower it, fly higher (a larger F*) or use fewer UAVs",
+            f"{safety.min_separation:g} m plus a margin of {need - safety.min_separation:.3g} m "
+            f"against the disturbance needs a side of F* of at least 2 x {need:.4g} = "
+            f"{2.0 * need:.4g} m, but it is {side:.4g} m: {why}; lower it, fly higher (a "
+            "larger F*) or use fewer UAVs",
         )
     dt = scenario.time.step
     reach = need + 2.0 * safety.max_speed * dt
@@ -276,11 +277,13 @@ def convergence_estimate(scenario: Scenario) -> dict[str, float]:
     """A rough time for the formation to settle over the target, before flying.
 
     Travel: the route's length (the straight line without the planner) from the middle of
-    the start region at the cruise speed; settling: the steps the slower linear law needs to
-    shrink its error a hundredfold (:func:`crlbswarm.graphs.settling_steps`); hold:
-    ``time.hold``. Not a bound: obstacles, the eta rule and the safety filter slow the
-    formation down (the layouts of ``docs/safety.md`` settle, hold included, within 1.4
-    times it).
+    the start region at the cruise speed, or, if longer, the time for the farthest UAV to
+    gather (its distance from the middle of the starts plus the formation's radius, at the
+    speed limit of the safety filter, or the cruise speed without it); settling: the steps
+    the slower linear law needs to shrink its error a hundredfold
+    (:func:`crlbswarm.graphs.settling_steps`); hold: ``time.hold``. Not a bound: obstacles,
+    the eta rule and the safety filter slow the formation down (``docs/safety.md`` gives
+    the ratios measured).
 
     Parameters
     ----------
@@ -304,8 +307,15 @@ def convergence_estimate(scenario: Scenario) -> dict[str, float]:
     gains = scenario.gains
     steps = settling_steps(scenario.adjacency, scenario.uavs.leader, float(gains.epsilon),
                            float(gains.gamma))  # fmt: skip
+    if scenario.uavs.start is not None:
+        corners = np.asarray(scenario.uavs.start, dtype=float)
+    else:
+        (x0, x1), (y0, y1) = scenario.uavs.start_region  # type: ignore[misc]
+        corners = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
+    spread = float(np.max(np.hypot(*(corners - start).T))) + scenario.formation_radius
+    speed = scenario.safety.max_speed if scenario.safety.enabled else gains.cruise_speed
     out = {
-        "travel_s": length / gains.cruise_speed,
+        "travel_s": max(length / gains.cruise_speed, spread / speed),
         "settling_s": steps * scenario.time.step,
         "hold_s": scenario.time.hold,
     }
@@ -353,7 +363,7 @@ def preflight(scenario: Scenario) -> list[str]:
         )
     out.append(
         f"the formation needs about {est['total_s']:.0f} s to settle (travel "
-        f"{est['travel_s']:.0f} s at cruise speed, settling {est['settling_s']:.0f} s, hold "
+        f"{est['travel_s']:.0f} s, settling {est['settling_s']:.0f} s, hold "
         f"{est['hold_s']:.0f} s), more than time.duration = {scenario.time.duration:g} s: "
         + " or ".join(fixes)
     )

@@ -191,6 +191,7 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         route_y=float(sc.route_goal[1]),
         carrot=sc.route_carrot,
         replan_every=max(1, round(REPLAN_PERIOD / sc.time.step)),
+        steer_radius=sc.steering_radius,
     )
     return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
