@@ -754,24 +754,29 @@ def test_head_on_uavs_wait_for_ever_without_the_turn_and_pass_with_it():
 
 def test_the_turn_changes_only_blocked_uavs_and_stays_safe():
     """A UAV that is not blocked (its safe move advances along its nominal one by at least a
-    quarter of the nominal's length) moves exactly as with the plain QP; a blocked one moves
-    by its QP's solution for the turned nominal, which satisfies the same rows."""
+    quarter of what it could: the nominal's length, capped at the speed limit) moves exactly
+    as with the plain QP; a blocked one takes the QP's solution for the turned nominal if
+    that is the longer move, which satisfies the same rows."""
     c, s = math.cos(safety.UNBLOCK_TURN), math.sin(safety.UNBLOCK_TURN)
-    counts = np.zeros(2, dtype=int)
+    counts = np.zeros(3, dtype=int)
     for seed in range(20):
         rng = np.random.default_rng(900 + seed)
         q = safe_state(rng, 10, SEP, 0.0, box=8.0)
         d_nom = adversarial_moves(rng, q, RECTS, CIRCLES, VSTEP)
         plain = kernel_step(q, d_nom)
         turned = kernel_step(q, d_nom, turn=safety.UNBLOCK_TURN)
-        nom2 = np.sum(d_nom * d_nom, axis=1)
-        slow = np.sum(plain * d_nom, axis=1) < safety.BLOCKED_FRACTION * nom2
-        blocked = slow & (np.sqrt(nom2) >= safety.BLOCKED_MOVING * VSTEP)
-        counts += [blocked.sum(), (~blocked).sum()]
+        length = np.hypot(*d_nom.T)
+        could = np.minimum(length, VSTEP)
+        slow = np.sum(plain * d_nom, axis=1) < safety.BLOCKED_FRACTION * could * length
+        blocked = slow & (length >= safety.BLOCKED_MOVING * VSTEP)
         assert np.array_equal(turned[~blocked], plain[~blocked])
         rotated = np.column_stack(
             [c * d_nom[:, 0] + s * d_nom[:, 1], c * d_nom[:, 1] - s * d_nom[:, 0]]
         )
         again = kernel_step(q, rotated)
-        assert np.allclose(turned[blocked], again[blocked], rtol=0, atol=1e-12)
-    assert counts.min() > 0  # both kinds occurred
+        longer = np.hypot(*again.T) > np.hypot(*plain.T)
+        expect = np.where((blocked & longer)[:, None], again, plain)
+        assert np.allclose(turned, expect, rtol=0, atol=1e-12)
+        counts += [(~blocked).sum(), (blocked & longer).sum(), (blocked & ~longer).sum()]
+    assert counts[0] > 0  # unblocked UAVs occurred
+    assert counts[1] > 0  # and UAVs the turn frees

@@ -140,7 +140,7 @@ from .geometry import clip_norm
 from .obstacles import Obstacles, check_obstacles, obstacle_distance
 
 #: A UAV is blocked when its safe displacement advances along its nominal one by less than
-#: this fraction of the nominal's length...
+#: this fraction of what it could (the nominal's length, at most the step's speed limit)...
 BLOCKED_FRACTION = 0.25
 
 #: ... and its nominal displacement is at least this fraction of the step's speed limit.
@@ -490,9 +490,10 @@ def safety_step(
 
     With ``turn`` :math:`\theta \ne 0`, a UAV whose safe displacement is *blocked*
     (advances along a nominal displacement of at least :data:`BLOCKED_MOVING` of the step's
-    speed limit by less than :data:`BLOCKED_FRACTION` of the nominal's length) solves its
-    QP again with the nominal turned by :math:`\theta` clockwise, to its right, and moves
-    by that solution: the
+    speed limit by less than :data:`BLOCKED_FRACTION` of what it could, the nominal's
+    length capped at the speed limit) solves its QP again with the nominal turned by
+    :math:`\theta` clockwise, to its right, and moves by that solution if it is the longer
+    move: the
     "right-hand rule" that lets two UAVs that meet head-on, or a cluster that jams, slide
     past each other instead of waiting for the disturbance to free them (for ever without
     it). The solution is safe either way (the same rows); only the nominal changes.
@@ -512,9 +513,12 @@ def safety_step(
         dx, dy, _ = _solve_unit(nx, ny, a_work, b_work, m, vmax_step)
         if turn != 0.0:
             nom2 = nx * nx + ny * ny
-            if nom2 >= moving2 and dx * nx + dy * ny < BLOCKED_FRACTION * nom2:
-                dx, dy, _ = _solve_unit(c * nx + s * ny, c * ny - s * nx, a_work, b_work, m,
+            reach = min(math.sqrt(nom2), vmax_step)  # what the step could advance at most
+            if nom2 >= moving2 and dx * nx + dy * ny < BLOCKED_FRACTION * reach * math.sqrt(nom2):
+                tx, ty, _ = _solve_unit(c * nx + s * ny, c * ny - s * nx, a_work, b_work, m,
                                         vmax_step)  # fmt: skip
+                if tx * tx + ty * ty > dx * dx + dy * dy:  # it does get the UAV moving
+                    dx, dy = tx, ty
         out[i, 0] = dx
         out[i, 1] = dy
 
