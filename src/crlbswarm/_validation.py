@@ -135,3 +135,105 @@ def seed_range(
             f"the seeds {start}..{start + runs - 1} go beyond the largest, 2**63 - 1",
         )
     return start, runs
+
+
+# -- the model's physical range ------------------------------------------------------------
+# Inputs outside these ranges are refused (FieldError) instead of overflowing: squares of
+# coordinates, fourth powers of ranges and the Fisher information stay far from the limits
+# of double precision inside them (docs/scenarios.md, "Ranges").
+
+#: Largest horizontal coordinate (positions, targets, obstacles), m: 1000 km.
+MAX_COORDINATE = 1e6
+
+#: Smallest and largest flight altitude H, m.
+MIN_ALTITUDE = 0.1
+MAX_ALTITUDE = 1e5
+
+#: Largest number of UAVs of a formation or a scenario.
+MAX_UAVS = 1_000_000
+
+#: Share of the memory this process may still take that one request may ask for.
+MEMORY_SHARE = 0.5
+
+
+def _meminfo_available() -> int | None:
+    """MemAvailable of /proc/meminfo (Linux), or the physical memory elsewhere."""
+    import os
+
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
+        return None
+
+
+def _status_bytes(key: str) -> int | None:
+    """A ``kB`` entry of /proc/self/status (``VmSize``, ``VmData``) in bytes (Linux)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _cgroup_room() -> int | None:
+    """Memory left under the cgroup v2 limit of this process (containers), if any."""
+    try:
+        with open("/sys/fs/cgroup/memory.max", encoding="ascii") as f:
+            text = f.read().strip()
+        if text == "max":
+            return None
+        with open("/sys/fs/cgroup/memory.current", encoding="ascii") as f:
+            return int(text) - int(f.read().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def memory_room() -> int | None:
+    """Bytes this process may still allocate: the smallest of the memory available on the
+    machine, the room under the process's address-space and data limits (``ulimit -v``,
+    ``ulimit -d``) and the room under its container's limit; None if none is known."""
+    rooms = [_meminfo_available(), _cgroup_room()]
+    try:
+        import resource
+
+        for limit, used in (
+            (resource.RLIMIT_AS, _status_bytes("VmSize")),
+            (resource.RLIMIT_DATA, _status_bytes("VmData")),
+        ):
+            soft = resource.getrlimit(limit)[0]
+            if soft != resource.RLIM_INFINITY:
+                rooms.append(soft - (used or 0))
+    except (ImportError, OSError, ValueError):  # pragma: no cover - not POSIX
+        pass
+    known = [max(r, 0) for r in rooms if r is not None]
+    return min(known) if known else None
+
+
+def _size_text(nbytes: float) -> str:
+    for unit, scale in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes:.0f} bytes"
+
+
+def check_memory(nbytes: float, name: str, what: str) -> None:
+    """Refuse, before allocating, a request of ``nbytes`` that would not fit: more than
+    :data:`MEMORY_SHARE` of :func:`memory_room`. ``what`` says what needs the memory
+    (``"400 runs of 6000 steps"``); the error names ``name`` and gives both sizes."""
+    room = memory_room()
+    if room is not None and nbytes > MEMORY_SHARE * room:
+        raise FieldError(
+            name,
+            f"{what} need about {_size_text(nbytes)}, more than this process may take "
+            f"(half of the {_size_text(room)} it can still allocate)",
+        )
