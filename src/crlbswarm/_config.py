@@ -10,7 +10,9 @@ field's description.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 import sys
 import textwrap
 import types
@@ -38,6 +40,13 @@ __all__ = [
 ]
 
 Model = TypeVar("Model", bound=BaseModel)
+
+#: Largest configuration file read, bytes (a scenario with thousands of obstacles is far
+#: below; an endless file such as ``/dev/zero`` stops here).
+MAX_FILE_BYTES = 4 * 2**20
+
+#: Deepest nesting of tables and arrays in a configuration file (scenarios need 3).
+MAX_DEPTH = 16
 
 
 #: A finite number > 0 (the type of most physical parameters of the configuration models).
@@ -83,10 +92,28 @@ def read_toml(text: str, source: str, error: type[ConfigError] = ConfigError) ->
     ConfigError
         If the text is not valid TOML.
     """
+    if len(text) > MAX_FILE_BYTES:
+        raise error(source, "", f"{len(text)} characters, more than the {MAX_FILE_BYTES} allowed")
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(source, "", f"invalid TOML: {exc}") from None
+    except RecursionError:
+        raise error(source, "", "invalid TOML: nested too deeply") from None
+    if _depth(data) > MAX_DEPTH:
+        raise error(source, "", f"tables or arrays nested more than {MAX_DEPTH} deep")
+    return data
+
+
+def _depth(value: Any, level: int = 0) -> int:
+    """Nesting depth of tables and arrays (stops counting past :data:`MAX_DEPTH`)."""
+    if level > MAX_DEPTH:
+        return level
+    if isinstance(value, dict):
+        return max((_depth(v, level + 1) for v in value.values()), default=level + 1)
+    if isinstance(value, list):
+        return max((_depth(v, level + 1) for v in value), default=level + 1)
+    return level
 
 
 def read_toml_file(
@@ -114,9 +141,21 @@ def read_toml_file(
         If the file cannot be read or is not valid TOML (its source is the file name).
     """
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(str(path), "", f"cannot read: {exc}") from None
+        # Non-blocking, so that opening a FIFO does not wait for a writer; refused below.
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as f:
+            info = os.fstat(f.fileno())
+            if not stat.S_ISREG(info.st_mode):
+                raise error(str(path), "", "not a regular file")
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise error(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise error(str(path), "", f"larger than the {MAX_FILE_BYTES} bytes allowed")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(str(path), "", f"cannot read: not UTF-8 text ({exc.reason})") from None
     return text, read_toml(text, str(path), error)
 
 

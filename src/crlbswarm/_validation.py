@@ -149,8 +149,9 @@ MAX_COORDINATE = 1e6
 MIN_ALTITUDE = 0.1
 MAX_ALTITUDE = 1e5
 
-#: Largest number of UAVs of a formation or a scenario.
-MAX_UAVS = 1_000_000
+#: Largest number of UAVs of a formation or a scenario (the largest swarm of the scaling
+#: benchmark; a mission of that size already takes minutes).
+MAX_UAVS = 100_000
 
 #: Share of the memory this process may still take that one request may ask for.
 MEMORY_SHARE = 0.5
@@ -226,14 +227,16 @@ def _size_text(nbytes: float) -> str:
     return f"{nbytes:.0f} bytes"
 
 
-def check_memory(nbytes: float, name: str, what: str) -> None:
+def check_memory(nbytes: float, name: str, what: str, hint: str = "") -> None:
     """Refuse, before allocating, a request of ``nbytes`` that would not fit: more than
     :data:`MEMORY_SHARE` of :func:`memory_room`. ``what`` says what needs the memory
-    (``"400 runs of 6000 steps"``); the error names ``name`` and gives both sizes."""
+    (``"400 runs of 6000 steps"``), ``hint`` what to change; the error names ``name`` and
+    gives both sizes."""
     room = memory_room()
     if room is not None and nbytes > MEMORY_SHARE * room:
         raise FieldError(
             name,
             f"{what} need about {_size_text(nbytes)}, more than this process may take "
-            f"(half of the {_size_text(room)} it can still allocate)",
+            f"(half of the {_size_text(room)} it can still allocate)"
+            + (f"; {hint}" if hint else ""),
         )

@@ -15,19 +15,23 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__
 from ._validation import MIN_UAVS
-from .errors import CampaignError, ConfigError, FieldError, SimulationDivergedError
+from .errors import CampaignError, ConfigError, FieldError, SimulationDivergedError, one_line
 from .paper import FIGURE_FORMATS, FIGURE_RUNS
 from .radar import Radar, radar_parameters
 
 __all__ = ["build_parser", "format_design", "main"]
 
 EXIT_USAGE = 2
+
+#: Results larger than this (bytes) are announced before a run starts.
+LARGE_OUTPUT = 10**9
 
 #: Help text of a SCENARIO argument.
 _BUILTIN_HELP = "built-in name (see `crlbswarm scenario list`) or TOML file"
@@ -37,7 +41,10 @@ class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line on stderr (no usage dump), exit 2."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_USAGE, f"crlbswarm: error: {message}\n")
+        if "arguments are required" in message:  # e.g. no command: say how to call it
+            usage = " ".join(self.format_usage().split())
+            message = f"{message} ({usage}; see --help)"
+        self.exit(EXIT_USAGE, f"crlbswarm: error: {one_line(message, 1000)}\n")
 
 
 def _option(target: Any, fields: dict[str, str], *flags: str, field: str, **kwargs: Any) -> None:
@@ -197,7 +204,12 @@ def _add_figures(sub: Any) -> None:
         required=True,
         type=Path,
         metavar="DIR",
-        help="output folder (created if missing)",
+        help="output folder (created if missing; refused if it holds files, unless --force)",
+    )
+    figures.add_argument(
+        "--force",
+        action="store_true",
+        help="write into DIR even if it holds files (those of the same names are replaced)",
     )
     _option(
         figures,
@@ -280,12 +292,17 @@ def _add_simulate(sub: Any) -> None:
         required=True,
         type=Path,
         metavar="DIR",
-        help="output folder",
+        help="output folder (missing or empty, unless --force)",
     )
     simulate.add_argument(
         "--no-trajectories",
         action="store_true",
         help="do not keep positions and velocities (metrics and time series only)",
+    )
+    simulate.add_argument(
+        "--force",
+        action="store_true",
+        help="write into DIR even if it holds files (those of the same names are replaced)",
     )
     simulate.add_argument(
         "--strict",
@@ -384,6 +401,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
     reproduce(
         args.out,
+        overwrite=args.force,
         fmt=args.format,
         n_uavs=args.uavs,
         seed=args.seed,
@@ -413,14 +431,26 @@ def _cmd_scenario_list(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from . import _validation as _v
     from .output import check_output_folder
+    from .results import result_nbytes
     from .scenario import load_scenario
     from .scenario_checks import preflight
+    from .simulation import check_memory
 
     # Validate everything before running anything; create the folder only after the run.
     scenario = load_scenario(args.scenario)
     first, runs = _v.seed_range(args.seed, args.runs, "seed", "seeds")
-    check_output_folder(args.out, "folder")
-    for line in preflight(scenario):
+    check_output_folder(args.out, "folder", new=True, overwrite=args.force)
+    keep = not args.no_trajectories
+    steps, count = scenario.time.steps, scenario.uavs.count
+    check_memory(runs, steps, count, keep)
+    size = result_nbytes(runs, steps, count, keep)
+    warnings = preflight(scenario)
+    if size > LARGE_OUTPUT:
+        warnings.append(
+            f"the results will take about {size / 1e9:.1f} GB before compression"
+            + (" (--no-trajectories keeps much less)" if keep else "")
+        )
+    for line in warnings:
         print(f"crlbswarm: warning: {line}", file=sys.stderr)
 
     from tqdm import tqdm
@@ -435,7 +465,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             keep_trajectories=not args.no_trajectories,
             progress=lambda done: bar.update(done - bar.n),
         )
-    for path in result.save(args.out):
+    for path in result.save(args.out, overwrite=args.force):
         print(f"wrote {path}")
     lines = outcome_report(result)
     warning = lines.pop() if lines[-1].startswith("warning:") else None
@@ -505,27 +535,57 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = build_parser()
     args = parser.parse_args(argv)
+    # Warnings (numerical or from a library) are held back: printed as one line each after
+    # a success, dropped when an error line is printed.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        status = _run(args)
+    if status == 0:
+        for text in dict.fromkeys(one_line(str(w.message)) for w in caught):
+            print(f"crlbswarm: warning: {text}", file=sys.stderr)
+    return status
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the command; every failure becomes one line on stderr and an exit status."""
     try:
-        return args.func(args)
+        return int(args.func(args))
     except FieldError as exc:
-        print(f"crlbswarm: error: {_message(exc, args.fields)}", file=sys.stderr)
-        return EXIT_USAGE
+        return _fail(_message(exc, args.fields), EXIT_USAGE)
     except (ValueError, SimulationDivergedError) as exc:
-        print(f"crlbswarm: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        return _fail(str(exc), EXIT_USAGE)
     except CampaignError as exc:  # a campaign task failed on a worker
-        print(f"crlbswarm: error: {exc}", file=sys.stderr)
-        return 1
+        return _fail(str(exc), 1)
     except KeyboardInterrupt:
-        print("crlbswarm: interrupted (finished work is kept; re-run to resume)", file=sys.stderr)
+        kept = (
+            "finished tasks are kept; run the same command again to resume"
+            if args.command == "sweep"
+            else "nothing was written"
+        )
+        print(f"crlbswarm: interrupted ({kept})", file=sys.stderr)
         return 130
     except BrokenPipeError:
         # The reader (e.g. ``| head``) went away: not an error of ours; silence the flush.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:
-        print(f"crlbswarm: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        return _fail(str(exc), EXIT_USAGE)
+    except (MemoryError, RecursionError) as exc:  # a size or a depth beyond the checks
+        what = "memory" if isinstance(exc, MemoryError) else "recursion depth"
+        return _fail(f"not enough {what} for this input; use smaller sizes", EXIT_USAGE)
+    except Exception as exc:  # a bug: one line, the traceback on demand
+        if os.environ.get("CRLBSWARM_DEBUG"):
+            raise
+        return _fail(
+            f"internal error ({type(exc).__name__}: {exc}); please report it "
+            "(CRLBSWARM_DEBUG=1 shows the traceback)",
+            1,
+        )
+
+
+def _fail(message: str, status: int) -> int:
+    print(f"crlbswarm: error: {one_line(message)}", file=sys.stderr)
+    return status
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -14,7 +14,34 @@ __all__ = [
     "FieldError",
     "ScenarioError",
     "SimulationDivergedError",
+    "one_line",
 ]
+
+
+#: Longest reason kept in an error message, characters: a value echoed in a reason is cut
+#: (a megabyte-long list in a file must not become a megabyte-long error line).
+MAX_REASON = 400
+
+
+def one_line(text: str, limit: int = MAX_REASON) -> str:
+    """``text`` on one line (line breaks become spaces), cut to ``limit`` characters.
+
+    Parameters
+    ----------
+    text : str
+        Any text.
+    limit : int, default MAX_REASON
+        Longest result.
+
+    Returns
+    -------
+    str
+        The text, with ``"... (N characters)"`` at the end if it was cut.
+    """
+    flat = " ".join(text.splitlines())
+    if len(flat) <= limit:
+        return flat
+    return f"{flat[: limit - 30]}... ({len(flat)} characters)"
 
 
 class FieldError(ValueError):
@@ -37,6 +64,7 @@ class FieldError(ValueError):
     """
 
     def __init__(self, field: str, reason: str) -> None:
+        field, reason = one_line(field), one_line(reason)
         super().__init__(f"{field}: {reason}" if field else reason)
         self.field = field
         self.reason = reason
@@ -68,6 +96,7 @@ class ConfigError(FieldError):
     """
 
     def __init__(self, source: str, field: str, reason: str) -> None:
+        source, field, reason = one_line(source), one_line(field), one_line(reason)
         ValueError.__init__(self, ": ".join(p for p in (source, field, reason) if p))
         self.source = source
         self.field = field

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import glob
 import io
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -31,13 +33,16 @@ __all__ = [
     "json_text",
     "make_output_folder",
     "save_figure",
+    "staged_folder",
     "write_csv",
     "write_json",
     "write_text",
 ]
 
 
-def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
+def check_output_folder(
+    path: str | os.PathLike[str], field: str, *, new: bool = False, overwrite: bool = False
+) -> None:
     """Fail early, creating nothing, if the folder ``path`` could not be created or written.
 
     Parameters
@@ -46,13 +51,26 @@ def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
         The folder (it may not exist yet).
     field : str
         The argument that named it, for the error.
+    new : bool, default False
+        Also refuse a folder that already holds files, unless ``overwrite``: results are
+        never replaced unasked.
+    overwrite : bool, default False
+        With ``new``, accept a folder that holds files (the user asked to replace them).
 
     Raises
     ------
     FieldError
-        If an existing part of the path is not a folder, or is not writable.
+        If an existing part of the path is not a folder, or is not writable, or (``new``)
+        the folder holds files and ``overwrite`` is not set.
     """
-    probe = Path(path)
+    folder = Path(path)
+    if new and not overwrite and folder.is_dir() and any(folder.iterdir()):
+        raise FieldError(
+            field,
+            f"{str(folder)!r} already holds files; choose a new or empty folder, or "
+            "replace its files with --force (in Python: overwrite=True)",
+        )
+    probe = folder
     while not probe.exists():
         if probe.parent == probe:
             break
@@ -89,6 +107,101 @@ def make_output_folder(path: str | os.PathLike[str], field: str) -> Path:
     except OSError as exc:
         raise FieldError(field, f"cannot create folder {str(out)!r}: {exc.strerror}") from exc
     return out
+
+
+#: Infix of the hidden folder, beside the destination, in which a result set is written
+#: before it is moved into place (:func:`staged_folder`).
+STAGE_INFIX = ".partial-"
+
+
+@contextlib.contextmanager
+def staged_folder(
+    path: str | os.PathLike[str], field: str, *, overwrite: bool = False, marker: str = ""
+) -> Iterator[Path]:
+    """Yield a hidden folder beside ``path`` to write a set of files in; move them into
+    ``path`` when the block succeeds, remove them if it raises.
+
+    The folder is refused at the start if it holds files and ``overwrite`` is not set
+    (:func:`check_output_folder`). When ``path`` is missing or empty the staged folder is
+    renamed onto it (one atomic step: after a crash ``path`` is absent or complete); when
+    the user asked to overwrite, the files are moved in one by one, ``marker`` (the file
+    whose presence marks a complete set) removed first and moved in last. Staged folders
+    left by a killed process are removed the next time the same destination is written.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The destination folder.
+    field : str
+        The argument that named it, for errors.
+    overwrite : bool, default False
+        Replace the files of the same names in a folder that already holds files.
+    marker : str, optional
+        Name of the file that marks a complete set.
+
+    Yields
+    ------
+    pathlib.Path
+        The staged folder to write in.
+
+    Raises
+    ------
+    FieldError
+        If the folder cannot be written, or holds files and ``overwrite`` is not set.
+    """
+    dest = Path(path)
+    check_output_folder(dest, field, new=True, overwrite=overwrite)
+    parent = make_output_folder(dest.absolute().parent, field)
+    _remove_stale_stages(parent, dest.name)
+    stage = Path(tempfile.mkdtemp(prefix=f".{dest.name}{STAGE_INFIX}{os.getpid()}-", dir=parent))
+    try:
+        yield stage
+        stage.chmod(0o755)  # mkdtemp makes 0700; results are meant to be shared
+        _publish(stage, dest, field, overwrite, marker)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+
+
+def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) -> None:
+    """Move the staged files into ``dest`` (see :func:`staged_folder`)."""
+    try:
+        os.rename(stage, dest)  # dest missing, or an empty folder (POSIX)
+        return
+    except OSError:
+        if not dest.is_dir():
+            raise
+    if not overwrite:
+        raise FieldError(field, f"{str(dest)!r} was filled by something else while running")
+    names = sorted(p.name for p in stage.iterdir())
+    if marker in names:
+        names.remove(marker)
+        names.append(marker)
+        (dest / marker).unlink(missing_ok=True)
+    for name in names:
+        os.replace(stage / name, dest / name)
+    stage.rmdir()
+
+
+def _remove_stale_stages(parent: Path, name: str) -> None:
+    """Remove the staged folders of ``name`` whose writing process no longer runs."""
+    for stale in parent.glob(f".{glob.escape(name)}{STAGE_INFIX}*"):
+        pid = stale.name[len(name) + 1 + len(STAGE_INFIX) :].split("-")[0]
+        if pid.isdigit() and not _running(int(pid)):
+            shutil.rmtree(stale, ignore_errors=True)
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists (on this machine)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, but not ours (PermissionError), or not POSIX
+        return True
+    return True
 
 
 @contextlib.contextmanager
@@ -145,17 +258,24 @@ def _csv_text(columns: Mapping[str, Any]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
     for row in zip(*arrays, strict=True):
-        writer.writerow(
-            [repr(float(x)) if np.issubdtype(type(x), np.floating) else x for x in row]
-        )
+        writer.writerow([_cell(x) for x in row])
     return buf.getvalue()
+
+
+def _cell(value: Any) -> Any:
+    """A CSV cell: floats in their shortest round-trip form, NaN and infinities empty."""
+    if isinstance(value, float | np.floating):
+        return repr(float(value)) if np.isfinite(value) else ""
+    return value
 
 
 def write_csv(path: str | os.PathLike[str], columns: Mapping[str, Any]) -> None:
     """Write equal-length 1-D columns as CSV atomically: one header row, then the values.
 
     Floats are written with ``repr`` (shortest round-trip form), so reading the file back
-    gives the same numbers bit for bit.
+    gives the same numbers bit for bit; NaN and infinities (a quantity that does not exist
+    for that row, such as the convergence time of a run that did not converge, or the
+    clearance of a scene without obstacles) are written as empty cells.
 
     Parameters
     ----------

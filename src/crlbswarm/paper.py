@@ -23,13 +23,7 @@ from typing import Any
 
 from . import __version__, _validation as _v
 from .errors import FieldError
-from .output import (
-    check_output_folder,
-    make_output_folder,
-    save_figure,
-    write_csv,
-    write_json,
-)
+from .output import check_output_folder, save_figure, staged_folder, write_csv, write_json
 
 __all__ = ["FIGURE_FORMATS", "FIGURE_RUNS", "FIGURE_TRIALS", "reproduce"]
 
@@ -42,6 +36,9 @@ FIGURE_RUNS = 50
 #: Image formats of the figures.
 FIGURE_FORMATS = ("png", "pdf", "svg")
 
+#: The file listing the figures; written last, its presence marks a complete folder.
+MANIFEST = "manifest.json"
+
 
 def reproduce(
     out_dir: str | os.PathLike[str],
@@ -52,13 +49,16 @@ def reproduce(
     trials: int | None = None,
     runs: int | None = None,
     on_write: Callable[[Path], None] | None = None,
+    overwrite: bool = False,
 ) -> list[Path]:
     """Write the paper's figures, and those beyond it, with their data, to ``out_dir``.
 
     Parameters
     ----------
     out_dir : str or path-like
-        Output folder (created if missing; files of the same names are replaced).
+        Output folder: missing or empty (created if missing). The files are written in a
+        hidden folder beside it and moved into place at the end, so an interrupted run
+        leaves it absent or complete.
     fmt : {"png", "pdf", "svg"}, default "png"
         Image format.
     n_uavs : int, default 6
@@ -73,7 +73,9 @@ def reproduce(
         Runs of the sensing and tracking figures, seeds ``seed .. seed + runs - 1``
         (default :data:`FIGURE_RUNS`).
     on_write : callable, optional
-        Called with the path of each file once it is written (for progress messages).
+        Called with the path of each file once it is in place (for progress messages).
+    overwrite : bool, default False
+        Accept a folder that already holds files, replacing those of the same names.
 
     Returns
     -------
@@ -94,24 +96,21 @@ def reproduce(
     else:
         first, n_runs = _v.seed_range(seed, runs, "seed", "runs")
     out = Path(out_dir)
-    check_output_folder(out, "out_dir")
+    check_output_folder(out, "out_dir", new=True, overwrite=overwrite)
     figures, manifest = _compute(n_uavs, first, n_trials, n_runs)
-    make_output_folder(out, "out_dir")
-    written = []
-    for stem, (fig, columns) in figures.items():
-        for path in (out / f"{stem}.csv", out / f"{stem}.{fmt}"):
-            if path.suffix == ".csv":
-                write_csv(path, columns)
-            else:
-                save_figure(fig, path)
-            manifest["files"].append(path.name)
-            written.append(path)
-            if on_write is not None:
-                on_write(path)
-    write_json(out / "manifest.json", manifest)
-    written.append(out / "manifest.json")
+    with staged_folder(out, "out_dir", overwrite=overwrite, marker=MANIFEST) as stage:
+        for stem, (fig, columns) in figures.items():
+            for path in (stage / f"{stem}.csv", stage / f"{stem}.{fmt}"):
+                if path.suffix == ".csv":
+                    write_csv(path, columns)
+                else:
+                    save_figure(fig, path)
+                manifest["files"].append(path.name)
+        write_json(stage / MANIFEST, manifest)
+    written = [out / name for name in [*manifest["files"], MANIFEST]]
     if on_write is not None:
-        on_write(written[-1])
+        for path in written:
+            on_write(path)
     return written
 
 

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FieldError
-from .output import atomic_path, make_output_folder, write_csv, write_json, write_text
+from .output import atomic_path, staged_folder, write_csv, write_json, write_text
 from .scenario import Scenario, load_scenario
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "MissionResult",
     "load_results",
     "outcome_report",
+    "result_nbytes",
 ]
 
 #: Convergence: CRLB within this factor of the bound and centroid within CENTROID_TOL.
@@ -328,42 +329,53 @@ class MissionResult:
             "rms_centroid_error_m": np.sqrt(np.mean(self.centroid_error**2, axis=0)),
         }
 
-    def save(self, folder: str | os.PathLike[str]) -> list[Path]:
+    def save(self, folder: str | os.PathLike[str], *, overwrite: bool = False) -> list[Path]:
         """Write the result to a folder: arrays, per-run metrics, scenario and summary.
 
-        Files (each written atomically; ``summary.json`` last, so its presence marks a
-        complete set): ``trajectories.npz`` (every array attribute that is not ``None``,
-        and ``formation``, the scenario's :math:`F^*`), ``metrics.csv`` (one row per run),
-        ``scenario.toml`` (the scenario, readable by :func:`crlbswarm.load_scenario`) and
-        ``summary.json`` (:meth:`summary`, the first and last seed and the crlbswarm
-        version). :func:`load_results` reads the folder back.
+        Files: ``trajectories.npz`` (compressed; every array attribute that is not
+        ``None``, and ``formation``, the scenario's :math:`F^*`), ``metrics.csv`` (one row
+        per run), ``scenario.toml`` (the scenario, readable by
+        :func:`crlbswarm.load_scenario`) and ``summary.json`` (:meth:`summary`, the first
+        and last seed and the crlbswarm version). They are written in a hidden folder
+        beside ``folder`` and moved into place at the end (:func:`crlbswarm.output.
+        staged_folder`), so an interrupted save leaves ``folder`` absent or complete.
+        :func:`load_results` reads the folder back.
 
         Parameters
         ----------
         folder : str or path-like
-            Output folder; created if missing, files of the same names replaced.
+            Output folder: missing or empty (created if missing).
+        overwrite : bool, default False
+            Accept a folder that already holds files, replacing those of the same names.
 
         Returns
         -------
         list of pathlib.Path
-            The files written, in order.
+            The files written, in order (``summary.json`` last: its presence marks a
+            complete set).
+
+        Raises
+        ------
+        FieldError
+            If ``folder`` holds files and ``overwrite`` is not set, or cannot be written
+            (field ``folder``).
         """
         from . import __version__
 
-        out = make_output_folder(folder, "folder")
         arrays: dict[str, Any] = {n: np.asarray(getattr(self, n)) for n in _ARRAY_FIELDS}
         arrays = {k: v for k, v in arrays.items() if v.dtype != object}  # None: not kept
         arrays["formation"] = self.scenario.slots
-        paths = [out / name for name in RESULT_FILES]
-        with atomic_path(paths[0]) as tmp:
-            np.savez(tmp, **arrays)
-        write_csv(paths[1], self.metrics)
-        write_text(paths[2], self.scenario.to_toml())
         summary = self.summary()
         summary["seeds"] = {"first": int(self.seeds[0]), "last": int(self.seeds[-1])}
         summary["crlbswarm_version"] = __version__
-        write_json(paths[3], summary)
-        return paths
+        with staged_folder(folder, "folder", overwrite=overwrite, marker=RESULT_FILES[3]) as out:
+            paths = [out / name for name in RESULT_FILES]
+            with atomic_path(paths[0]) as tmp:
+                np.savez_compressed(tmp, **arrays)
+            write_csv(paths[1], self.metrics)
+            write_text(paths[2], self.scenario.to_toml())
+            write_json(paths[3], summary)
+        return [Path(folder) / name for name in RESULT_FILES]
 
     def summary(self) -> dict[str, Any]:
         """Aggregate figures over the runs, JSON-ready.
@@ -398,6 +410,33 @@ class MissionResult:
         return out
 
 
+def result_nbytes(n_runs: int, k_steps: int, m_uavs: int, keep_trajectories: bool) -> int:
+    """Bytes of the arrays of a result: its time series (about 14 values per run and step:
+    eta, CRLB, cost, centroid, target, estimate, ...) and, if kept, the positions and
+    velocities of every UAV (the memory :func:`crlbswarm.simulate` needs, and about the
+    size of ``trajectories.npz`` before compression).
+
+    Parameters
+    ----------
+    n_runs : int
+        Runs.
+    k_steps : int
+        Steps per run.
+    m_uavs : int
+        UAVs.
+    keep_trajectories : bool
+        Whether positions and velocities are kept.
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    series = n_runs * (k_steps + 1) * 14 * 8
+    trajectories = 2 * n_runs * (k_steps + 1) * m_uavs * 2 * 8 if keep_trajectories else 0
+    return series + trajectories
+
+
 def outcome_report(result: MissionResult) -> list[str]:
     """A few lines for the end of a batch: outcomes, median convergence time, worst final
     CRLB / bound, smallest clearance and separation, and a warning when a run did not
@@ -418,12 +457,14 @@ def outcome_report(result: MissionResult) -> list[str]:
     counts = result.outcome_counts
     conv = m["convergence_time_s"]
     median = f"{np.nanmedian(conv):.1f} s" if np.isfinite(conv).any() else "-"
+    clearance = np.min(m["min_clearance_m"])
     lines = [
         "outcomes            "
         + ", ".join(f"{k} {counts[k]}/{n}" for k in OUTCOMES if k in counts),
         f"median convergence  {median}",
         f"worst CRLB/bound    {np.max(m['final_crlb_ratio']):.4g} (final)",
-        f"min clearance       {np.min(m['min_clearance_m']):.4g} m",
+        "min clearance       "
+        + (f"{clearance:.4g} m" if np.isfinite(clearance) else "- (no obstacles)"),
         f"min separation      {np.min(m['min_separation_m']):.4g} m "
         f"(safety.min_separation {result.scenario.safety.min_separation:g} m)",
     ]

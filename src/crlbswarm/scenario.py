@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, create_model, field_validator, model_validator
 
+from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat, model_to_toml, read_toml, read_toml_file, validate
 from ._validation import MIN_UAVS
 from .control import ControlGains, EtaRule
@@ -75,14 +76,30 @@ MAX_PRIOR_SIGMAS = 5.0
 #: ``safety.min_separation`` (:attr:`Scenario.safety_margins`).
 MIN_MARGIN = 1e-3
 
+#: Largest sampling interval dT, s (the discrete laws are meant for steps of a fraction of a
+#: second; beyond a minute nothing of the paper's model holds).
+MAX_STEP = 60.0
+
+#: Largest target speed, m/s (targets of low-altitude networks; keeps the target's path
+#: inside the model's range over a mission).
+MAX_TARGET_SPEED = 1000.0
+
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
+#: A horizontal coordinate, m, inside the model's range.
+Coordinate = Annotated[
+    float, Field(ge=-_v.MAX_COORDINATE, le=_v.MAX_COORDINATE, allow_inf_nan=False)
+]
+Pair = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
 
 
 class UavsConfig(ConfigModel):
     """The UAVs and their start."""
 
-    count: int = Field(ge=MIN_UAVS, description=f"number of UAVs M (>= {MIN_UAVS})")
+    count: int = Field(
+        ge=MIN_UAVS,
+        le=_v.MAX_UAVS,
+        description=f"number of UAVs M ({MIN_UAVS} to {_v.MAX_UAVS:,})",
+    )
     leader: int = Field(0, ge=0, description="index of the leader (the paper's UAV 1 is 0)")
     start_region: Annotated[list[Pair], Field(min_length=2, max_length=2)] | None = Field(
         None, description="[[x_min, x_max], [y_min, y_max]], m: starts drawn uniformly (seeded)"
@@ -168,7 +185,9 @@ else:
 class TimeConfig(ConfigModel):
     """Time discretisation."""
 
-    step: PositiveFloat = Field(description="sampling interval dT, s")
+    step: Annotated[float, Field(gt=0, le=MAX_STEP, allow_inf_nan=False)] = Field(
+        description=f"sampling interval dT, s (at most {MAX_STEP:g})"
+    )
     duration: PositiveFloat = Field(description="mission length, s (a whole number of steps)")
     hold: PositiveFloat = Field(
         10.0, description="converged: within tolerance at least this long until the end, s"
@@ -183,10 +202,10 @@ class TimeConfig(ConfigModel):
         step = info.data.get("step")
         if step is not None:
             n = duration / step
-            if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
-                raise ValueError(f"must be a positive whole number of steps of {step:g} s")
             if n > MAX_STEPS:
                 raise ValueError(f"is {n:.3g} steps of {step:g} s; at most {MAX_STEPS:g} allowed")
+            if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
+                raise ValueError(f"must be a positive whole number of steps of {step:g} s")
         return duration
 
     @model_validator(mode="after")
@@ -277,7 +296,9 @@ class CircleObstacle(ConfigModel):
 
     type: Literal["circle"]
     center: Pair = Field(description="[x, y], m")
-    radius: PositiveFloat = Field(description="m")
+    radius: Annotated[float, Field(gt=0, le=_v.MAX_COORDINATE, allow_inf_nan=False)] = Field(
+        description="m"
+    )
 
     def overlaps_box(self, x0: float, x1: float, y0: float, y1: float) -> bool:
         """Whether the disc meets the box ``[x0, x1] x [y0, y1]``.
@@ -350,7 +371,10 @@ class TargetMotionConfig(ConfigModel):
     model: Literal["static", "constant_velocity", "turning"] = Field(
         "static", description="static, constant_velocity or turning (coordinated turn)"
     )
-    velocity: Pair = Field([0.0, 0.0], description="initial velocity, m/s")
+    velocity: Annotated[
+        list[Annotated[float, Field(ge=-MAX_TARGET_SPEED, le=MAX_TARGET_SPEED)]],
+        Field(min_length=2, max_length=2),
+    ] = Field([0.0, 0.0], description=f"initial velocity, m/s (each at most {MAX_TARGET_SPEED:g})")
     turn_rate: FiniteFloat = Field(0.0, description="turning: rate of turn, rad/s")
     acceleration_noise: Annotated[float, Field(ge=0, le=100)] = Field(
         0.0, description="std of the white acceleration noise per axis, m/s^2 (at most 100)"
@@ -383,7 +407,11 @@ class Scenario(ConfigModel):
 
     name: str = Field("custom", description="short name")
     description: str = Field("", description="one line of text")
-    altitude: PositiveFloat = Field(description="common flight altitude H, m")
+    altitude: Annotated[
+        float, Field(ge=_v.MIN_ALTITUDE, le=_v.MAX_ALTITUDE, allow_inf_nan=False)
+    ] = Field(
+        description=f"common flight altitude H, m ({_v.MIN_ALTITUDE:g} to {_v.MAX_ALTITUDE:g})"
+    )
     target: Pair = Field(description="target position s = [x, y], m")
     uavs: UavsConfig = Field(description="count, leader and start of the UAVs")
     time: TimeConfig = Field(description="step and duration")
@@ -696,7 +724,7 @@ def scenario_data(name_or_path: str | Path) -> tuple[str, dict[str, Any]]:
     key = str(name_or_path)
     if key in BUILTIN_SCENARIOS:
         return f"scenario '{key}'", BUILTIN_SCENARIOS[key]
-    if not Path(name_or_path).is_file():
+    if not Path(name_or_path).exists():
         raise _unknown(key)
     return key, read_toml_file(name_or_path, ScenarioError)[1]
 

@@ -15,7 +15,6 @@ streams of a scenario without estimation are the same as before estimation exist
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -35,7 +34,7 @@ from .mission_kernel import (
     run_batch,
 )
 from .planning import assign_slots
-from .results import MissionResult
+from .results import MissionResult, result_nbytes
 from .scenario import Scenario
 from .tracking import (
     motion_matrices,
@@ -44,7 +43,7 @@ from .tracking import (
     target_trajectories,
 )
 
-__all__ = ["MAX_SEED", "simulate", "start_positions"]
+__all__ = ["MAX_SEED", "check_memory", "simulate", "start_positions"]
 
 #: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
@@ -54,9 +53,6 @@ CHUNK_BYTES = 64 * 2**20
 
 #: Largest seed (seeds are stored as int64).
 MAX_SEED = _v.MAX_SEED
-
-#: Fraction of the machine's memory that the kept trajectories may take.
-MEMORY_FRACTION = 0.5
 
 
 def _streams(seed: int, count: int) -> list[np.random.Generator]:
@@ -111,38 +107,57 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
     return _start(scenario, _streams(_v.seed(seed, "seed"), 1)[0])
 
 
-def _seed_list(seed: int | None, seeds: Iterable[int] | None) -> np.ndarray:
+def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_steps: int,
+               keep: bool) -> np.ndarray:  # fmt: skip
+    """The seeds as an int64 array, checked; a ``range`` is checked (values and the memory
+    of its runs) before it is materialised."""
     if seed is not None and seeds is not None:
         raise FieldError("seeds", "give either seed or seeds, not both")
+    name = "seeds" if seeds is not None else "seed"
+    if isinstance(seeds, range):
+        if len(seeds) == 0:
+            raise FieldError("seeds", "need at least one seed")
+        _v.seed(seeds[0], name)
+        _v.seed(seeds[-1], name)  # a range's values lie between its ends
+        check_memory(len(seeds), k_steps, m_uavs, keep)
+        return np.arange(seeds.start, seeds.stop, seeds.step, dtype=np.int64)
     values = [0 if seed is None else seed] if seeds is None else list(seeds)
     if not values:
         raise FieldError("seeds", "need at least one seed")
-    name = "seeds" if seeds is not None else "seed"
     for s in values:
         _v.seed(s, name)
+    check_memory(len(values), k_steps, m_uavs, keep)
     return np.array(values, dtype=np.int64)
 
 
-def _physical_memory() -> int | None:
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
-        return None
+def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
+    """Refuse, before allocating, a batch whose arrays could not fit in memory.
 
+    Parameters
+    ----------
+    n_runs : int
+        Runs of the batch.
+    k_steps : int
+        Steps per run.
+    m_uavs : int
+        UAVs.
+    keep : bool
+        Whether the trajectories are kept.
 
-def _check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
-    """Refuse, naming the cause, a batch whose arrays could not fit in memory."""
-    series = n_runs * (k_steps + 1) * 14 * 8  # eta, crlb, cost, target, estimate, ... per step
-    trajectories = 2 * n_runs * (k_steps + 1) * m_uavs * 2 * 8 if keep else 0
-    total = series + trajectories
-    limit = _physical_memory()
-    if limit is not None and total > MEMORY_FRACTION * limit:
-        hint = "keep_trajectories=False or fewer" if keep else "fewer"
-        raise FieldError(
-            "seeds",
-            f"{n_runs} runs of {k_steps} steps need about {total / 2**30:.1f} GiB, more "
-            f"than half of this machine's {limit / 2**30:.0f} GiB; use {hint} runs per call",
-        )
+    Raises
+    ------
+    FieldError
+        (field ``seeds``) With the memory needed and the memory the process may take.
+    """
+    hint = "fewer runs per call" + (
+        ", or keep_trajectories=False (--no-trajectories)" if keep else ""
+    )
+    _v.check_memory(
+        result_nbytes(n_runs, k_steps, m_uavs, keep) + CHUNK_BYTES,
+        "seeds",
+        f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
+        hint,
+    )
 
 
 def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConstants]:
@@ -347,9 +362,9 @@ def simulate(
             "scenario", f"expected a crlbswarm.Scenario, got {type(scenario).__name__}"
         )
     sc = scenario
-    seed_arr = _seed_list(seed, seeds)
-    n_runs, k_steps, m_uavs = seed_arr.shape[0], sc.time.steps, sc.uavs.count
-    _check_memory(n_runs, k_steps, m_uavs, keep_trajectories)
+    k_steps, m_uavs = sc.time.steps, sc.uavs.count
+    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories)
+    n_runs = seed_arr.shape[0]
     kernel_args = _kernel_arguments(sc)
     scene = kernel_args[0]
     batch = _Batch(sc, n_runs, keep_trajectories)
