@@ -168,7 +168,10 @@ def _campaign_mutation(rng: random.Random, spec: dict[str, Any]) -> tuple[str, l
         lambda: _put(
             spec,
             ("random",),
-            {"samples": rng.choice([10**5, 10**6, 10**9]), "fields": {"altitude": {"choice": [20]}}},
+            {
+                "samples": rng.choice([10**5, 10**6, 10**9]),
+                "fields": {"altitude": {"choice": [20]}},
+            },
         ),
         lambda: _put(
             spec,
@@ -184,7 +187,9 @@ def _campaign_mutation(rng: random.Random, spec: dict[str, Any]) -> tuple[str, l
                 },
             },
         ),
-        lambda: _put(spec, ("base",), rng.choice(["/dev/zero", "/nonexistent.toml", "/tmp", "x" * 5000])),
+        lambda: _put(
+            spec, ("base",), rng.choice(["/dev/zero", "/nonexistent.toml", "/tmp", "x" * 5000])
+        ),
         lambda: _put(spec, ("batch_size",), rng.choice([0, -1, 10**12, 1.5])),
         lambda: _put(spec, ("trajectories",), rng.choice(["yes", 1, None])),
     ]
@@ -250,7 +255,11 @@ def _cli_case(rng: random.Random, tmp: Path) -> list[str]:
             value = "2"
         return ["figures", "--out", str(tmp / "fig"), f"--{which}", value]
     if command == "scenario":
-        return ["scenario", "show", rng.choice(["/dev/zero", "/nonexistent", str(tmp), "x" * 3000])]
+        return [
+            "scenario",
+            "show",
+            rng.choice(["/dev/zero", "/nonexistent", str(tmp), "x" * 3000]),
+        ]
     if command == "sweep":
         return ["sweep", str(tmp / "missing.toml"), "--out", str(tmp / "sw")]
     out = str(tmp / "sim")
@@ -388,18 +397,34 @@ def _api_table() -> list[tuple[str, Callable[..., Any], dict[str, Any]]]:
     pos = cs.optimal_formation(6, 20.0, (0.0, 0.0))
     return [
         ("crlb", cs.crlb, {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0}),
-        ("fisher_information", cs.fisher_information,
-         {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0}),  # fmt: skip
-        ("optimal_formation", cs.optimal_formation,
-         {"n_uavs": 6, "altitude": 20.0, "target_xy": (0.0, 0.0)}),  # fmt: skip
+        (
+            "fisher_information",
+            cs.fisher_information,
+            {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0},
+        ),
+        (
+            "optimal_formation",
+            cs.optimal_formation,
+            {"n_uavs": 6, "altitude": 20.0, "target_xy": (0.0, 0.0)},
+        ),
         ("optimal_elevation", cs.optimal_elevation, {"altitude": 20.0}),
         ("crlb_bound", cs.crlb_bound, {"n_uavs": 6, "altitude": 20.0}),
         ("regular_polygon", cs.regular_polygon, {"n": 6, "radius": 10.0}),
-        ("slant_ranges", cs.slant_ranges,
-         {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0}),  # fmt: skip
-        ("measure_ranges", cs.measure_ranges,
-         {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0,
-          "rng": np.random.default_rng(0)}),  # fmt: skip
+        (
+            "slant_ranges",
+            cs.slant_ranges,
+            {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0},
+        ),
+        (
+            "measure_ranges",
+            cs.measure_ranges,
+            {
+                "positions": pos,
+                "target": (0.0, 0.0),
+                "altitude": 20.0,
+                "rng": np.random.default_rng(0),
+            },
+        ),
         ("db_to_linear", cs.db_to_linear, {"value_db": 3.0}),
         ("dbm_to_watts", cs.dbm_to_watts, {"value_dbm": 20.0}),
         ("Radar", cs.Radar, {"kappa": 1.0, "noise_power": 1e-12}),
@@ -442,7 +467,11 @@ def api_case(rng: random.Random, tmp: Path) -> dict[str, Any]:
         return api_case(rng, tmp)
     kwargs = dict(kwargs)
     kwargs[key] = _api_value(rng, kwargs[key])
-    return {"family": "api", "input": f"{name}({key}={_short(kwargs[key])})", "call": (func, kwargs)}
+    return {
+        "family": "api",
+        "input": f"{name}({key}={_short(kwargs[key])})",
+        "call": (func, kwargs),
+    }
 
 
 def judge_api(func: Callable[..., Any], kwargs: dict[str, Any]) -> str | None:

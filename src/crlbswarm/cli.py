@@ -350,6 +350,23 @@ def _add_sweep(sub: Any) -> None:
         default=None,
         help="workers of the local cluster (default: cores)",
     )
+    for flag, field, what in (
+        ("--tls-ca-file", "tls_ca_file", "certificate authority of the scheduler (PEM)"),
+        ("--tls-cert", "tls_cert", "this client's certificate (PEM)"),
+        ("--tls-key", "tls_key", "this client's private key (PEM)"),
+    ):
+        _option(sweep, fields, flag, field=field, type=Path, metavar="FILE", default=None,
+                help=f"with a tls:// scheduler: {what}")  # fmt: skip
+    _option(
+        sweep,
+        fields,
+        "--connect-timeout",
+        field="connect_timeout",
+        type=float,
+        default=10.0,
+        metavar="SECONDS",
+        help="how long to wait for the scheduler (default %(default)s)",
+    )
 
 
 # -- commands ------------------------------------------------------------------------------
@@ -487,16 +504,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     from .campaign import run_campaign
 
-    with tqdm(unit="task", disable=None, file=sys.stderr) as bar:
+    bars: list[Any] = []  # the bar appears with the first progress report, not before
 
-        def progress(done: int, total: int) -> None:
-            if bar.total != total:  # first call: total known, finished tasks not timed
-                bar.reset(total=total)
-                bar.update(done)
-                bar.refresh()
-            else:
-                bar.update(done - bar.n)
+    def progress(done: int, total: int) -> None:
+        if not bars:  # first call: total known, finished tasks not timed
+            bars.append(
+                tqdm(total=total, initial=done, unit="task", disable=None, file=sys.stderr)
+            )
+        bars[0].update(done - bars[0].n)
 
+    try:
         counts = run_campaign(
             spec,
             args.out,
@@ -504,7 +521,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             n_workers=args.workers,
             spec_text=text,
             progress=progress,
+            tls_ca_file=args.tls_ca_file,
+            tls_cert=args.tls_cert,
+            tls_key=args.tls_key,
+            connect_timeout=args.connect_timeout,
         )
+    finally:
+        for bar in bars:
+            bar.close()
     print(
         f"{counts['tasks']} tasks over {counts['variants']} variants: ran {counts['ran']}, "
         f"skipped {counts['skipped']} already finished; results in {args.out / 'runs'}"
@@ -530,8 +554,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 on success, 2 for an error the user can fix (printed as one line),
-        1 for a campaign task that failed on a worker, 130 when interrupted.
+        Exit status: 0 on success, 2 for an error the user can fix (printed as one line; a
+        campaign task failing because of its input is a ``ValueError``, so it is one), 1 for
+        a campaign that failed on its cluster (a worker lost), 130 when interrupted.
     """
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -554,7 +579,7 @@ def _run(args: argparse.Namespace) -> int:
         return _fail(_message(exc, args.fields), EXIT_USAGE)
     except (ValueError, SimulationDivergedError) as exc:
         return _fail(str(exc), EXIT_USAGE)
-    except CampaignError as exc:  # a campaign task failed on a worker
+    except CampaignError as exc:  # the cluster failed (input errors are ValueErrors, above)
         return _fail(str(exc), 1)
     except KeyboardInterrupt:
         kept = (
