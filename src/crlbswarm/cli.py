@@ -461,14 +461,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     steps, count = scenario.time.steps, scenario.uavs.count
     check_memory(runs, steps, count, keep)
     size = result_nbytes(runs, steps, count, keep)
-    warnings = preflight(scenario)
-    if size > LARGE_OUTPUT:
-        warnings.append(
-            f"the results will take about {size / 1e9:.1f} GB before compression"
-            + (" (--no-trajectories keeps much less)" if keep else "")
+    if size > LARGE_OUTPUT:  # said before the run (stdout: stderr is kept for one error line)
+        print(
+            f"note: the results will take about {size / 1e9:.1f} GB before compression"
+            + (" (--no-trajectories keeps much less)" if keep else ""),
+            flush=True,
         )
-    for line in warnings:
-        print(f"crlbswarm: warning: {line}", file=sys.stderr)
 
     from tqdm import tqdm
 
@@ -487,6 +485,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     lines = outcome_report(result)
     warning = lines.pop() if lines[-1].startswith("warning:") else None
     print("\n".join(lines))
+    # The scenario's warnings come with the outcome (an error line, if any, stays alone).
+    for line in preflight(scenario):
+        print(f"crlbswarm: warning: {line}", file=sys.stderr)
     if warning is not None:
         print(f"crlbswarm: {warning}", file=sys.stderr)
         return 1 if args.strict else 0

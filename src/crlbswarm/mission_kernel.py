@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ._validation import MAX_COORDINATE
 from .control import (
     consensus_update,
     control_cost,
@@ -74,8 +75,9 @@ __all__ = [
 ]
 
 #: A run whose UAV is farther than this along x or y from the (believed) target, m, or at
-#: NaN, diverged (relative, so that projected coordinates far from the origin fly).
-DIVERGENCE_LIMIT = 1.0e6
+#: NaN, diverged (relative, so that projected coordinates far from the origin fly): ten
+#: times the model's largest coordinate, so a valid start is never "diverged".
+DIVERGENCE_LIMIT = 10 * MAX_COORDINATE
 
 #: Bisection steps of the carrot that would cut a corner (:func:`carrot_point`).
 CARROT_BISECTIONS = 8

@@ -362,12 +362,18 @@ def preflight(scenario: Scenario) -> list[str]:
             else "use a denser graph"
         )
     out.append(
-        f"the formation needs about {est['total_s']:.0f} s to settle (travel "
-        f"{est['travel_s']:.0f} s, settling {est['settling_s']:.0f} s, hold "
-        f"{est['hold_s']:.0f} s), more than time.duration = {scenario.time.duration:g} s: "
+        f"the formation needs about {_seconds(est['total_s'])} to settle (travel "
+        f"{_seconds(est['travel_s'])}, settling {_seconds(est['settling_s'])}, hold "
+        f"{_seconds(est['hold_s'])}), more than time.duration = {scenario.time.duration:g} s: "
         + " or ".join(fixes)
     )
     return out
+
+
+def _seconds(value: float) -> str:
+    """A duration for a message; beyond a year (or infinite, a gain that is zero in double
+    precision) it says so instead of printing a huge number."""
+    return f"{value:.0f} s" if value < 3.2e7 else "more than a year"
 
 
 def _start_centre(scenario: Scenario) -> np.ndarray:
