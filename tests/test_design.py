@@ -70,15 +70,18 @@ def test_optimal_elevation_other_radars(ref, tx_power, carrier_frequency):
 
 
 def test_optimal_elevation_limits():
-    """54.7356 deg = arctan(sqrt 2) as H -> 0, 45 deg as H -> infinity (to 1e-4 deg)."""
-    assert abs(np.degrees(optimal_elevation(1e-3)) - 54.7356) < 1e-4
-    assert abs(np.degrees(optimal_elevation(1e-3)) - np.degrees(ARCTAN_SQRT2)) < 1e-4
-    assert abs(np.degrees(optimal_elevation(1e7)) - 45.0) < 1e-4
+    """54.7356 deg = arctan(sqrt 2) as H -> 0, 45 deg as H -> infinity (to 1e-4 deg): the
+    limits are those of 8 H^2 / A, reached at the ends of the altitude range (0.1 m, and
+    1e5 m with a weak link)."""
+    assert abs(np.degrees(optimal_elevation(0.1)) - 54.7356) < 1e-4
+    assert abs(np.degrees(optimal_elevation(0.1)) - np.degrees(ARCTAN_SQRT2)) < 1e-4
+    weak = Radar(noise_power=1e-2)  # A ~ 1.3e-2
+    assert abs(np.degrees(optimal_elevation(1e5, weak)) - 45.0) < 1e-4
 
 
 def test_optimal_elevation_strictly_between_limits_and_decreasing():
-    """phi* in (45 deg, 54.7356 deg], decreasing with H, from 1 mm to 10 000 km."""
-    altitudes = np.geomspace(1e-3, 1e7, 200)
+    """phi* in (45 deg, 54.7356 deg], decreasing with H, over the altitude range."""
+    altitudes = np.geomspace(0.1, 1e5, 200)
     phi = optimal_elevation(altitudes)
     assert np.all(phi > 0.25 * np.pi)
     assert np.all(phi <= ARCTAN_SQRT2)

@@ -25,6 +25,7 @@ from scipy.optimize import minimize, root
 from scipy.stats import chi2, norm
 
 from crlbswarm import (
+    FieldError,
     Radar,
     TargetEstimate,
     estimate_target,
@@ -781,10 +782,14 @@ def test_estimate_failed_trials_are_flagged_and_finite():
 
 
 def test_estimate_astronomical_ranges_do_not_warn():
-    """Ranges whose squares overflow: a finite position, flagged failed, and no warning."""
-    est = estimate_target(optimal_formation(6, (0.0, 0.0), 20.0), np.full(6, 1e160), 20.0)
+    """Absurd ranges at the edge of their range: a finite position and likelihood, flagged
+    failed, and no warning; beyond it (squares near overflow), one line naming them."""
+    est = estimate_target(optimal_formation(6, (0.0, 0.0), 20.0), np.full(6, 1e30), 20.0)
     assert np.all(np.isfinite(est.position))
+    assert np.isfinite(est.nll)
     assert not bool(est.converged)
+    with pytest.raises(FieldError, match=r"^measured_ranges: .*model's range"):
+        estimate_target(optimal_formation(6, (0.0, 0.0), 20.0), np.full(6, 1e160), 20.0)
 
 
 # == estimate_target: batches, inputs ======================================================

@@ -13,6 +13,7 @@ from hypothesis import given, strategies as st
 from numpy.polynomial.hermite_e import hermegauss
 
 from crlbswarm import (
+    FieldError,
     Radar,
     crlb,
     crlb_from_fim,
@@ -327,7 +328,7 @@ def test_single_uav_gives_inf(uav, target, altitude):
 
 
 @pytest.mark.parametrize("n_uavs", [1, 3, 6])
-@pytest.mark.parametrize("altitude", [1e-3, 20.0, 5e3])
+@pytest.mark.parametrize("altitude", [0.1, 20.0, 5e3])
 def test_uavs_straight_above_the_target_give_inf(n_uavs, altitude):
     """Every UAV at the target's projection: no horizontal information, J_s = 0."""
     target = np.array([80.0, 90.0])
@@ -540,7 +541,12 @@ def test_from_fim_rejects_matrices_that_are_not_fims(fim):
             fn(fim)
 
 
-def test_extreme_but_finite_fims_give_inf_without_warning():
-    """Determinants that underflow give +inf (the true value overflows anyway), silently."""
-    assert crlb_from_fim(np.eye(2) * 1e-300) == np.inf
+def test_extreme_fims_are_refused_and_singular_ones_give_inf():
+    """FIMs whose inverse would over- or underflow are refused (one line naming fim); the
+    zero matrix is singular: +inf, silently."""
+    with pytest.raises(FieldError, match=r"^fim: .*model's range"):
+        crlb_from_fim(np.eye(2) * 1e-300)
+    with pytest.raises(FieldError, match=r"^fim: "):
+        crlb_from_fim(np.eye(2) * 1e200)
     assert crlb_from_fim(np.zeros((2, 2))) == np.inf
+    assert np.isfinite(crlb_from_fim(np.eye(2) * 1e-150))

@@ -26,12 +26,40 @@ MIN_UAVS = 3
 
 
 def as_float_array(value: object, name: str) -> np.ndarray:
-    """Convert ``value`` to a float64 array or raise a ``ValueError`` naming ``name``."""
+    """Convert ``value`` to a float64 array or raise a ``ValueError`` naming ``name``.
+
+    Real numbers (Python or NumPy, integer or float, any shape) are accepted; complex numbers
+    (even with a zero imaginary part: the conversion would drop it), booleans, strings,
+    dates and objects that are not numbers are refused, in one line.
+    """
+    if isinstance(value, str | bytes | bool | np.bool_):
+        raise FieldError(name, f"expected numbers, got {short(value)}")
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise FieldError(name, f"expected numbers, got {value!r}") from exc
-    return arr
+        raw = value if isinstance(value, np.ndarray) else np.asarray(value)
+    except Exception as exc:  # ragged nesting, a failing __array__, ...
+        raise FieldError(name, f"expected numbers, got {short(value)}") from exc
+    kind = raw.dtype.kind
+    if kind == "c":
+        raise FieldError(name, f"expected real numbers, got complex {short(value)}")
+    if kind == "b":
+        raise FieldError(name, f"expected numbers, got booleans {short(value)}")
+    if kind not in "iufO":
+        raise FieldError(name, f"expected numbers, got {short(value)}")
+    if kind == "O" and any(
+        isinstance(x, str | bytes | bool | np.bool_ | complex | np.complexfloating)
+        for x in raw.flat
+    ):
+        raise FieldError(name, f"expected real numbers, got {short(value)}")
+    try:
+        return np.asarray(raw, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise FieldError(name, f"expected numbers, got {short(value)}") from exc
+
+
+def short(value: object) -> str:
+    """``repr(value)`` on one line and at most 60 characters (for error messages)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def check_finite(arr: np.ndarray, name: str) -> np.ndarray:
@@ -64,7 +92,7 @@ def positive(value: object, name: str) -> np.ndarray:
     arr = as_float_array(value, name)
     check_finite(arr, name)
     if not np.all(arr > 0):
-        raise FieldError(name, f"must be > 0, got {value!r}")
+        raise FieldError(name, f"must be > 0, got {short(value)}")
     return arr
 
 
@@ -73,13 +101,21 @@ def finite(value: object, name: str) -> np.ndarray:
     return check_finite(as_float_array(value, name), name)
 
 
-def count(value: object, name: str, minimum: int) -> int:
-    """Check an integer count of at least ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise FieldError(name, f"expected an integer, got {value!r}")
+def count(value: object, name: str, minimum: int, maximum: int | None = None) -> int:
+    """Check an integer count of at least ``minimum`` (and at most ``maximum``).
+
+    Python and NumPy integers (and 0-d integer arrays) are accepted; floats, booleans and
+    anything else are refused."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
+        value = value.item()
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
+        raise FieldError(name, f"expected an integer, got {short(value)}")
+    value = int(value)
     if value < minimum:
         raise FieldError(name, f"must be at least {minimum}, got {value}")
-    return int(value)
+    if maximum is not None and value > maximum:
+        raise FieldError(name, f"must be at most {maximum}, got {value}")
+    return value
 
 
 def broadcast(name: str, *shapes: tuple[int, ...]) -> tuple[int, ...]:
@@ -93,10 +129,12 @@ def broadcast(name: str, *shapes: tuple[int, ...]) -> tuple[int, ...]:
 
 
 def scalar(value: object, name: str) -> float:
-    """Check a single finite number."""
-    arr = finite(value, name)
+    """Check a single finite number: a Python or NumPy number or a 0-d array (an array of
+    any other shape, even of one element, is refused)."""
+    arr = as_float_array(value, name)
     if arr.ndim != 0:
-        raise FieldError(name, f"expected a single number, got shape {arr.shape}")
+        raise FieldError(name, f"expected a single number, got an array of shape {arr.shape}")
+    check_finite(arr, name)
     return float(arr)
 
 
@@ -104,7 +142,7 @@ def positive_scalar(value: object, name: str) -> float:
     """Check a single finite number > 0."""
     number = scalar(value, name)
     if not number > 0:
-        raise FieldError(name, f"must be > 0, got {value!r}")
+        raise FieldError(name, f"must be > 0, got {short(value)}")
     return number
 
 
@@ -117,8 +155,9 @@ def seed(value: object, name: str) -> int:
 
 
 def uav_count(value: object, name: str) -> int:
-    """Check a number of UAVs of a formation: an integer of at least :data:`MIN_UAVS`."""
-    return count(value, name, MIN_UAVS)
+    """Check a number of UAVs of a formation: an integer from :data:`MIN_UAVS` to
+    :data:`MAX_UAVS`."""
+    return count(value, name, MIN_UAVS, MAX_UAVS)
 
 
 def seed_range(
@@ -140,10 +179,11 @@ def seed_range(
 # -- the model's physical range ------------------------------------------------------------
 # Inputs outside these ranges are refused (FieldError) instead of overflowing: squares of
 # coordinates, fourth powers of ranges and the Fisher information stay far from the limits
-# of double precision inside them (docs/scenarios.md, "Ranges").
+# of double precision inside them (docs/sensing-model.md, "Ranges of the model").
 
-#: Largest horizontal coordinate (positions, targets, obstacles), m: 1000 km.
-MAX_COORDINATE = 1e6
+#: Largest horizontal coordinate (positions, targets, obstacles), m: 10 000 km, so that
+#: projected coordinates (UTM eastings and northings, up to 1e7 m) are accepted.
+MAX_COORDINATE = 1e7
 
 #: Smallest and largest flight altitude H, m.
 MIN_ALTITUDE = 0.1
@@ -152,6 +192,44 @@ MAX_ALTITUDE = 1e5
 #: Largest number of UAVs of a formation or a scenario (the largest swarm of the scaling
 #: benchmark; a mission of that size already takes minutes).
 MAX_UAVS = 100_000
+
+#: Largest slant range, m: the farthest two points of the coordinate range, at the largest
+#: altitude (2 sqrt(2) 1e7 m, rounded up).
+MAX_DISTANCE = 3.0 * MAX_COORDINATE
+
+#: Smallest size of a formation (a radius, an offset, a length, a separation), m: a
+#: micrometre. Smaller formations are all but a single point, whose CRLB (about 1/r^2)
+#: would overflow.
+MIN_LENGTH = 1e-6
+
+#: Largest magnitude of an angle (a rotation or heading, in rad or deg): beyond it the
+#: spacing of a formation's azimuths (2 pi / M) is lost to rounding.
+MAX_ANGLE = 1e6
+
+#: Largest speed or velocity component, m/s (UAVs, targets, reference velocities).
+MAX_SPEED = 1e6
+
+#: Largest time step, s (of the target motion models and the control laws' time step).
+MAX_TIME_STEP = 1e4
+
+#: Largest standard deviation of a target's white acceleration, m/s^2.
+MAX_ACCELERATION = 1e4
+
+#: Largest turn rate of the turning target model, rad/s.
+MAX_TURN_RATE = 1e3
+
+#: Range of the radar's constant A = p G_p beta0 / (kappa sigma0^2), m^4: the range standard
+#: deviation at 1 m, 1/sqrt(A), lies between 1e-15 m and 1e15 m. With slant ranges in
+#: [MIN_ALTITUDE, MAX_DISTANCE] and up to MAX_UAVS UAVs, the variances d^4/A, the Fisher
+#: information, its determinant and the CRLB then stay finite and non-zero in double
+#: precision (docs/sensing-model.md, "Ranges of the model").
+MIN_SNR_CONSTANT = 1e-30
+MAX_SNR_CONSTANT = 1e30
+
+#: Largest magnitude of a measured range, m: beyond what the model can produce (a range of
+#: MAX_DISTANCE with the smallest A has a standard deviation of about 1e28 m), small enough
+#: that the likelihood and its derivatives stay finite.
+MAX_MEASURED_RANGE = 1e30
 
 #: Share of the memory this process may still take that one request may ask for.
 MEMORY_SHARE = 0.5
@@ -240,3 +318,90 @@ def check_memory(nbytes: float, name: str, what: str, hint: str = "") -> None:
             f"(half of the {_size_text(room)} it can still allocate)"
             + (f"; {hint}" if hint else ""),
         )
+
+
+# -- checks against the model's range ------------------------------------------------------
+def bounded(arr: np.ndarray, name: str, low: float, high: float, unit: str) -> np.ndarray:
+    """Refuse entries of ``arr`` outside ``[low, high]`` (after the finiteness check)."""
+    check_finite(arr, name)
+    if arr.size and not (np.all(arr >= low) and np.all(arr <= high)):
+        bad = arr[(arr < low) | (arr > high)].flat[0]
+        raise FieldError(
+            name, f"must be between {low:g} and {high:g}{unit} (the model's range), got {bad:g}"
+        )
+    return arr
+
+
+def coordinates(value: object, name: str) -> np.ndarray:
+    """Check planar positions ``(..., M, 2)`` within +-:data:`MAX_COORDINATE` m."""
+    arr = positions(value, name)
+    return bounded(arr, name, -MAX_COORDINATE, MAX_COORDINATE, " m")
+
+
+def location(value: object, name: str) -> np.ndarray:
+    """Check a planar point (or batch of points) ``(..., 2)`` within
+    +-:data:`MAX_COORDINATE` m."""
+    arr = point(value, name)
+    return bounded(arr, name, -MAX_COORDINATE, MAX_COORDINATE, " m")
+
+
+def velocity(value: object, name: str) -> np.ndarray:
+    """Check a planar velocity (or batch of them) ``(..., 2)`` with components within
+    +-:data:`MAX_SPEED` m/s."""
+    arr = point(value, name)
+    return bounded(arr, name, -MAX_SPEED, MAX_SPEED, " m/s")
+
+
+def altitude(value: object, name: str) -> np.ndarray:
+    """Check a flight altitude (or array of them) in [:data:`MIN_ALTITUDE`,
+    :data:`MAX_ALTITUDE`] m."""
+    arr = as_float_array(value, name)
+    return bounded(arr, name, MIN_ALTITUDE, MAX_ALTITUDE, " m")
+
+
+def length(value: object, name: str) -> np.ndarray:
+    """Check a length (or array of them) in [:data:`MIN_LENGTH`, :data:`MAX_DISTANCE`] m."""
+    arr = as_float_array(value, name)
+    check_finite(arr, name)
+    if not np.all(arr > 0):
+        raise FieldError(name, f"must be > 0, got {short(value)}")
+    return bounded(arr, name, MIN_LENGTH, MAX_DISTANCE, " m")
+
+
+def in_range(value: object, name: str, low: float, high: float, unit: str = "") -> float:
+    """Check a single number in ``[low, high]``."""
+    number = scalar(value, name)
+    if not low <= number <= high:
+        raise FieldError(
+            name, f"must be between {low:g} and {high:g}{unit} (the model's range), got {number:g}"
+        )
+    return number
+
+
+def finite_result(result: np.ndarray, name: str, reason: str) -> np.ndarray:
+    """Refuse a computed result that is not finite: the input ``name`` is out of range.
+
+    The safety net of the public functions: inside the model's ranges their results are
+    finite; an argument whose range is not declared (a gain) may still make them overflow,
+    and the error then names that argument, with ``reason``."""
+    if not np.all(np.isfinite(result)):
+        raise FieldError(name, reason)
+    return result
+
+
+def check_elements(n_elements: float, name: str, what: str, copies: int = 4) -> None:
+    """Refuse, before allocating, arrays of ``n_elements`` float64 values, counted ``copies``
+    times for the temporaries (:func:`check_memory`). Requests below
+    :data:`SMALL_REQUEST` bytes pass without reading the system's memory (the hot paths)."""
+    nbytes = 8.0 * copies * float(n_elements)
+    if nbytes >= SMALL_REQUEST:
+        check_memory(nbytes, name, what)
+
+
+#: Requests smaller than this (64 MiB) are not checked against the memory left.
+SMALL_REQUEST = 2**26
+
+
+def angle(value: object, name: str, unit: str = " rad") -> float:
+    """Check a single angle of magnitude at most :data:`MAX_ANGLE`."""
+    return in_range(value, name, -MAX_ANGLE, MAX_ANGLE, unit)

@@ -48,10 +48,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
-from pydantic import Field, PlainValidator
+from pydantic import Field, PlainValidator, ValidationError
 
 from . import _validation as _v
-from ._config import ConfigModel, PositiveFloat
+from ._config import ConfigModel, PositiveFloat, describe
 from .errors import FieldError
 from .geometry import clip_norm
 from .graphs import Adjacency, auto_consensus_step, auto_formation_step
@@ -88,6 +88,10 @@ def _positive_or_auto(value: object) -> float | str:
         return "auto"
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError('must be a number > 0 or "auto"')
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ValueError('must be a finite number > 0 or "auto"') from None
     if not (math.isfinite(value) and value > 0):
         raise ValueError('must be a finite number > 0 or "auto"')
     return float(value)
@@ -98,17 +102,34 @@ def _positive_or_auto(value: object) -> float | str:
 AutoGain = Annotated[float | Literal["auto"], PlainValidator(_positive_or_auto)]
 
 
+class _OneLineErrors(type(ConfigModel)):  # type: ignore[misc]
+    """Metaclass of the gains: built directly (``ControlGains(epsilon=-1)``), an invalid
+    value raises one :class:`FieldError` line naming the first offending field (every
+    problem after it, ``"; "``-joined). Validation inside a scenario does not call the
+    class, so the scenario's own error (``control.epsilon``) is unchanged."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return super().__call__(*args, **kwargs)
+        except ValidationError as exc:
+            problems = describe(exc)
+            field, first = problems[0]
+            rest = [f"{f}: {r}" if f else r for f, r in problems[1:]]
+            raise FieldError(field, "; ".join([first, *rest])) from None
+
+
 # ---------------------------------------------------------------------------------------
 # Gains: each declared once, with its unit and meaning
 # ---------------------------------------------------------------------------------------
-class ControlGains(ConfigModel):
+class ControlGains(ConfigModel, metaclass=_OneLineErrors):
     """Gains of the control laws (Sec. IV; choices documented in ``docs/control.md``).
 
     The scenario's ``[control]`` table; the public laws take it, and the mission kernel
-    receives it as :meth:`kernel_tuple`. Frozen; invalid values raise a pydantic
-    ``ValidationError`` (a :class:`ValueError`) naming the field. Each field is declared
-    once below, with its unit; this docstring's Parameters section and the comments of the
-    scenario file are generated from those declarations.
+    receives it as :meth:`kernel_tuple`. Frozen; an invalid value raises
+    :class:`~crlbswarm.errors.FieldError` (a :class:`ValueError`) naming the field, in one
+    line (inside a scenario, the scenario's error names ``control.<field>``). Each field is
+    declared once below, with its unit; this docstring's Parameters section and the comments
+    of the scenario file are generated from those declarations.
     """
 
     epsilon: AutoGain = Field(
@@ -176,12 +197,13 @@ class ControlGains(ConfigModel):
         return ControlGainsTuple(**self.model_dump())
 
 
-class EtaRule(ConfigModel):
+class EtaRule(ConfigModel, metaclass=_OneLineErrors):
     """Rule for the scaling factor :math:`\\eta` (not in the paper; :func:`eta_target`).
 
     The scenario's ``[eta]`` table; :func:`eta_target` and :func:`eta_update` take it, and
     the mission kernel receives it as :meth:`kernel_tuple`. Each field is declared once
-    below, with its unit; this docstring's Parameters section is generated from them.
+    below, with its unit; this docstring's Parameters section is generated from them. An
+    invalid value raises :class:`~crlbswarm.errors.FieldError` naming the field.
     """
 
     enabled: bool = Field(True, description="false keeps eta = 1")
@@ -547,6 +569,27 @@ def _flat(arr: np.ndarray, batch: tuple[int, ...], tail: tuple[int, ...]) -> np.
     return np.ascontiguousarray(np.broadcast_to(arr, (*batch, *tail))).reshape(-1, *tail)
 
 
+#: The reason of the error when a gain makes a law's output overflow.
+_TOO_LARGE = "{} so large that the output overflows"
+
+
+def _check_size(batch: tuple[int, ...], n: int, name: str) -> None:
+    """Refuse, before allocating, a batch whose arrays would not fit in memory."""
+    size = float(np.prod(batch, dtype=float)) * n
+    _v.check_elements(2.0 * size, name, f"{size:.3g} UAV rows", copies=4)
+
+
+def _overflow(out: np.ndarray, gain: str, *inputs: tuple[str, np.ndarray]) -> None:
+    """Refuse a law's output that overflowed, naming the input beyond the model's range
+    that caused it, or else the gain."""
+    if np.all(np.isfinite(out)):
+        return
+    for name, arr in inputs:
+        if arr.size and np.max(np.abs(arr)) > _v.MAX_COORDINATE:
+            _v.finite_result(out, name, "so large that the output overflows")
+    _v.finite_result(out, "gains", _TOO_LARGE.format(gain))
+
+
 def _formation_arrays(q: ArrayLike, name: str, adjacency: Adjacency) -> np.ndarray:
     if not isinstance(adjacency, Adjacency):
         raise FieldError(
@@ -570,7 +613,7 @@ def _slot_offsets(delta: ArrayLike, adjacency: Adjacency) -> np.ndarray:
 def _scale(eta: ArrayLike, name: str) -> np.ndarray:
     e = _v.finite(eta, name)
     if np.any((e <= 0) | (e > 1)):
-        raise FieldError(name, f"must lie in (0, 1], got {eta!r}")
+        raise FieldError(name, f"must lie in (0, 1], got {_v.short(eta)}")
     return e
 
 
@@ -621,10 +664,12 @@ def consensus_step(
     lead = _check_leader(leader, adjacency.n_nodes)
     gamma = float(_check_gains(gains).resolve(adjacency, lead).gamma)
     shape = _v.broadcast("v_ref", v.shape[:-2], ref.shape[:-1])
+    _check_size(shape, v.shape[-2], "velocities")
     vb = _flat(v, shape, v.shape[-2:])
     rb = _flat(ref, shape, (2,))
     out = np.empty_like(vb)
     _consensus_batch(vb, rb, lead, adjacency.indptr, adjacency.indices, gamma, out)
+    _overflow(out, "gamma", ("velocities", v), ("v_ref", ref))
     return out.reshape(*shape, *v.shape[-2:])
 
 
@@ -683,22 +728,33 @@ def leader_guidance(
     -------
     ndarray, shape (..., 2)
         :math:`\mathbf v^*`, m/s.
+
+    Raises
+    ------
+    FieldError
+        On positions beyond +-1e7 m, velocities beyond +-1e6 m/s, a footprint outside
+        [0, 3e7] m, or gains so large that the velocity overflows before the saturation
+        (field ``gains``).
     """
-    q = _v.point(leader_xy, "leader_xy")
-    goal = _v.point(goal_xy, "goal_xy")
+    q = _v.location(leader_xy, "leader_xy")
+    goal = _v.location(goal_xy, "goal_xy")
     gains = _check_gains(gains)
     rho = _v.scalar(footprint, "footprint")
-    if rho < 0:
-        raise FieldError("footprint", f"must be >= 0, got {footprint!r}")
+    if not 0 <= rho <= _v.MAX_DISTANCE:
+        raise FieldError(
+            "footprint", f"must be between 0 and {_v.MAX_DISTANCE:g} m (the model's range), "
+            f"got {rho:g}"
+        )  # fmt: skip
     obs = check_obstacles(obstacles) if obstacles is not None else Obstacles()
-    c = q if center_xy is None else _v.point(center_xy, "center_xy")
+    c = q if center_xy is None else _v.location(center_xy, "center_xy")
     if rho > 0 and gains.formation_steering and (center_xy is None or obstacles is None):
         raise FieldError("footprint", "steering needs center_xy and obstacles")
     step = _v.positive_scalar(dt, "dt")
-    tv = _v.point(goal_velocity, "goal_velocity")
+    tv = _v.velocity(goal_velocity, "goal_velocity")
     shape = _v.broadcast("goal_xy", q.shape, goal.shape)
     shape = _v.broadcast("center_xy", shape, c.shape)
     shape = _v.broadcast("goal_velocity", shape, tv.shape)
+    _check_size(shape[:-1], 1, "leader_xy")
     out = np.empty((int(np.prod(shape[:-1], dtype=int)), 2))
     _reference_batch(
         _flat(q, shape[:-1], (2,)), _flat(goal, shape[:-1], (2,)), _flat(c, shape[:-1], (2,)),
@@ -707,6 +763,9 @@ def leader_guidance(
         rho if gains.formation_steering else 0.0,
         step, out,
     )  # fmt: skip
+    _v.finite_result(
+        out, "gains", "guidance_gain (or repulsion_gain / dt) so large that the velocity overflows"
+    )
     return out.reshape(shape)
 
 
@@ -749,12 +808,14 @@ def formation_input(
     e = _scale(eta, "eta")
     eps = float(_check_gains(gains).resolve(adjacency, 0).epsilon)
     shape = _v.broadcast("eta", q.shape[:-2], e.shape)
+    _check_size(shape, q.shape[-2], "positions")
     qb = _flat(q, shape, q.shape[-2:])
     eb = _flat(e, shape, ())
     out = np.empty_like(qb)
     _formation_batch(
         qb, np.ascontiguousarray(d), eb, eps, adjacency.indptr, adjacency.indices, out
     )
+    _overflow(out, "epsilon", ("positions", q), ("delta", d))
     return out.reshape(*shape, *q.shape[-2:])
 
 
@@ -786,7 +847,7 @@ def repulsion(
     ndarray, shape (..., 2)
         Position increment per step, m.
     """
-    q = _v.point(positions, "positions")
+    q = _v.location(positions, "positions")
     gains = _check_gains(gains)
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty_like(qb)
@@ -795,6 +856,7 @@ def repulsion(
         qb, obs.rectangles, obs.circles, gains.repulsion_gain, gains.safety_radius,
         gains.repulsion_max_step, out,
     )  # fmt: skip
+    _v.finite_result(out, "gains", _TOO_LARGE.format("repulsion_gain"))
     return out.reshape(q.shape)
 
 
@@ -859,15 +921,16 @@ def eta_target(
     ndarray, shape (...)
         :math:`\eta^\text{goal} \in [\eta_\min, 1]`.
     """
-    c = _v.point(center_xy, "center_xy")
-    s = _v.point(target_xy, "target_xy")
+    c = _v.location(center_xy, "center_xy")
+    s = _v.location(target_xy, "target_xy")
     shape = _v.broadcast("target_xy", c.shape, s.shape)
-    r = _v.positive_scalar(radius, "radius")
+    r = float(_v.length(_v.scalar(radius, "radius"), "radius"))
     rl = _check_rule(rule)
     mrg = rl.margin_for(_check_gains(gains))
     obs = check_obstacles(obstacles)
     if not rl.enabled:
         return np.ones(shape[:-1])
+    _check_size(shape[:-1], 1, "center_xy")
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))
     out = np.empty(cb.shape[0])
@@ -905,6 +968,7 @@ def eta_update(eta: ArrayLike, goal: ArrayLike, rule: EtaRule, dt: float) -> np.
     rl = _check_rule(rule)
     step = rl.rate * _v.positive_scalar(dt, "dt")
     shape = _v.broadcast("goal", e.shape, goal_eta.shape)
+    _check_size(shape, 1, "eta")
     if not rl.enabled:
         return np.ones(shape)
     out = np.empty(int(np.prod(shape, dtype=int)))
@@ -953,15 +1017,18 @@ def formation_cost(
     q = _formation_arrays(positions, "positions", adjacency)
     qn = _formation_arrays(next_positions, "next_positions", adjacency)
     d = _slot_offsets(delta, adjacency)
-    ref = _v.point(v_ref, "v_ref")
+    ref = _v.velocity(v_ref, "v_ref")
     step = _v.positive_scalar(dt, "dt")
     shape = _v.broadcast("next_positions", q.shape[:-2], qn.shape[:-2], ref.shape[:-1])
+    _check_size(shape, q.shape[-2], "positions")
     mshape = q.shape[-2:]
     qb = _flat(q, shape, mshape)
     qnb = _flat(qn, shape, mshape)
     rb = _flat(ref, shape, (2,))
     out = np.empty(qb.shape[0])
-    _cost_batch(
-        qb, qnb, np.ascontiguousarray(d), rb, step, adjacency.indptr, adjacency.indices, out
-    )
+    with np.errstate(over="ignore"):
+        _cost_batch(
+            qb, qnb, np.ascontiguousarray(d), rb, step, adjacency.indptr, adjacency.indices, out
+        )
+    _v.finite_result(out, "dt", f"{step:g} s is so short that the cost overflows")
     return out.reshape(shape)

@@ -80,8 +80,8 @@ def information_weight(
     phi = _v.finite(elevation, "elevation")
     if np.any((phi < 0) | (phi > 0.5 * np.pi)):
         raise FieldError("elevation", "must lie in [0, pi/2] rad")
-    h = _v.positive(altitude, "altitude")
-    a = radar.snr_constant
+    h = _v.altitude(altitude, "altitude")
+    a = check_radar(radar, None)
     _v.broadcast("radar", np.shape(a), _v.broadcast("altitude", phi.shape, h.shape))
     r = np.sin(phi) ** 2 / h / h  # sin^2(phi) / H^2 = 1 / d^2, formed without overflow
     return (a * r * r + 8.0 * r) * np.cos(phi) ** 2
@@ -89,8 +89,8 @@ def information_weight(
 
 def _tan2_optimal(altitude: ArrayLike, radar: Radar) -> tuple[np.ndarray, np.ndarray]:
     """``(t*, H)`` with ``t* = tan^2(phi*)`` from the quadratic in the module docstring."""
-    h = _v.positive(altitude, "altitude")
-    a = radar.snr_constant
+    h = _v.altitude(altitude, "altitude")
+    a = check_radar(radar, None)
     _v.broadcast("radar", np.shape(a), h.shape)
     # t* = (1 + sqrt(1 + b + b^2)) / (1 + b) with b = 8H^2/A, or the same with c = 1/b,
     # t* = (c + sqrt(c^2 + c + 1)) / (c + 1): evaluate the form whose variable is <= 1, and
@@ -158,7 +158,8 @@ def _optimal_weights(n_uavs: ArrayLike, altitude: ArrayLike, radar: Radar) -> np
     """Optimal :math:`w^*_m`, shape ``(..., M)`` for altitude of shape ``(...)``."""
     n = _v.uav_count(n_uavs, "n_uavs")
     check_radar(radar, n)
-    h = _v.positive(altitude, "altitude")[..., None]
+    h = _v.altitude(altitude, "altitude")[..., None]
+    _v.check_elements(float(h.size) * n, "n_uavs", f"{n} weights at {h.size} altitudes")
     w = information_weight(optimal_elevation(h, radar), h, radar)
     return np.broadcast_to(w, (*w.shape[:-1], n))
 
@@ -227,8 +228,9 @@ def optimal_formation(
 
     Raises
     ------
-    ValueError
-        If ``n_uavs < 3``, ``altitude <= 0``, the target is not finite, or per-UAV radar
+    FieldError
+        If ``n_uavs`` is not an integer from 3 to 1 000 000, the altitude is outside
+        [0.1, 1e5] m or the target beyond +-1e7 m (the model's ranges), or per-UAV radar
         fields give unequal :math:`A_m`.
 
     Examples
@@ -250,7 +252,7 @@ def optimal_formation(
                 "the regular polygon is optimal only for equal A",
             )
         radar = Radar(**{k: float(np.ravel(v)[0]) for k, v in radar.to_dict().items()})
-    target = _v.point(target_xy, "target_xy")
+    target = _v.location(target_xy, "target_xy")
     radius = optimal_radius(altitude, radar)
     _v.broadcast("altitude", target.shape[:-1], radius.shape)
     return regular_polygon(n, target, radius, rotation)
@@ -289,20 +291,25 @@ def design_report(
         first), ``crlb_m2`` (tr J^-1 of F*), ``bound_m2`` (4/sum w*), ``rmse_bound_m``
         (sqrt of the CRLB), ``radar`` (the link parameters in linear SI units).
     """
-    target = np.asarray(target_xy, dtype=float)
-    rotation_deg = _v.scalar(rotation_deg, "rotation_deg")
-    positions = optimal_formation(n_uavs, target, altitude, radar, np.radians(rotation_deg))
-    value = float(crlb(positions, target, altitude, radar))
+    n = _v.uav_count(n_uavs, "n_uavs")
+    target = _v.location(target_xy, "target_xy")
+    if target.shape != (2,):
+        raise FieldError("target_xy", f"expected shape (2,), got {target.shape}")
+    h = _v.scalar(altitude, "altitude")
+    _v.altitude(h, "altitude")
+    rotation_deg = _v.angle(rotation_deg, "rotation_deg", " deg")
+    positions = optimal_formation(n, target, h, radar, np.radians(rotation_deg))
+    value = float(crlb(positions, target, h, radar))
     return {
-        "n_uavs": n_uavs,
-        "altitude_m": float(altitude),
+        "n_uavs": n,
+        "altitude_m": h,
         "target_m": target.tolist(),
         "rotation_deg": float(rotation_deg),
-        "elevation_deg": float(np.degrees(optimal_elevation(altitude, radar))),
-        "radius_m": float(optimal_radius(altitude, radar)),
+        "elevation_deg": float(np.degrees(optimal_elevation(h, radar))),
+        "radius_m": float(optimal_radius(h, radar)),
         "positions_m": positions.tolist(),
         "crlb_m2": value,
-        "bound_m2": float(crlb_bound(n_uavs, altitude, radar)),
+        "bound_m2": float(crlb_bound(n, h, radar)),
         "rmse_bound_m": float(np.sqrt(value)),
         "radar": radar.to_dict(),
     }

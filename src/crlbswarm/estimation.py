@@ -56,6 +56,9 @@ __all__ = [
 
 _DEFAULT_RADAR = Radar()
 
+#: Largest ``max_iter`` of :func:`estimate_target`.
+MAX_ITERATIONS = 1_000_000
+
 
 def _ranges_array(measured_ranges: ArrayLike, n_uavs: int) -> np.ndarray:
     d = _v.as_float_array(measured_ranges, "measured_ranges")
@@ -63,7 +66,8 @@ def _ranges_array(measured_ranges: ArrayLike, n_uavs: int) -> np.ndarray:
         raise FieldError(
             "measured_ranges", f"expected shape (..., {n_uavs}) to match uav_xy, got {d.shape}"
         )
-    return _v.check_finite(d, "measured_ranges")
+    lim = _v.MAX_MEASURED_RANGE
+    return _v.bounded(d, "measured_ranges", -lim, lim, " m")
 
 
 @vectorize(cache=True)
@@ -120,6 +124,12 @@ def measure_ranges(
     -------
     ndarray, shape (..., M)
         Measured ranges, m (may be negative with vanishing probability at very low SNR).
+
+    Raises
+    ------
+    FieldError
+        As :func:`crlbswarm.fisher_information` (shapes, the model's ranges), or if ``rng``
+        is not a :class:`numpy.random.Generator`.
     """
     if not isinstance(rng, np.random.Generator):
         raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
@@ -164,10 +174,9 @@ def negative_log_likelihood(
     a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     diff = target_offsets(q, s)
-    with np.errstate(over="ignore"):  # absurd magnitudes give inf, not a warning
-        d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
-        r = d_hat - np.sqrt(d2)
-        return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
+    d2 = np.sum(diff * diff, axis=-1) + (h * h)[..., None]
+    r = d_hat - np.sqrt(d2)
+    return np.sum(np.log(d2) + a * r * r / (2.0 * d2 * d2), axis=-1)
 
 
 def linearised_estimate(
@@ -422,15 +431,19 @@ def estimate_target(
     q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
     a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
-    n_iter = _v.count(max_iter, "max_iter", 1)
+    n_iter = _v.count(max_iter, "max_iter", 1, MAX_ITERATIONS)
     tolerance = _v.scalar(tol, "tol")
     if not tolerance > 0:
-        raise FieldError("tol", f"must be > 0, got {tol!r}")
-    s0 = linearised_estimate(q, d_hat, h) if init is None else _v.point(init, "init")
+        raise FieldError("tol", f"must be > 0, got {tolerance!r}")
+    s0 = linearised_estimate(q, d_hat, h) if init is None else _v.location(init, "init")
     # Absurd inputs (ranges whose squares overflow) make the costs infinite: every step is
     # then rejected and the trial is reported as failed, without a warning.
     with np.errstate(over="ignore", invalid="ignore"):
-        return _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
+        est = _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
+    reason = "so far from the ranges the geometry can produce that the likelihood overflows"
+    _v.finite_result(est.position, "measured_ranges", reason)
+    _v.finite_result(est.nll, "measured_ranges", reason)
+    return est
 
 
 def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:

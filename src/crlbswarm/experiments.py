@@ -18,12 +18,13 @@ from .design import crlb_bound, optimal_elevation, optimal_formation, optimal_ra
 from .errors import FieldError
 from .fisher import crlb
 from .formations import (
+    MIN_SPAN,
     arc_formation,
     fixed_radius_polygon,
     line_formation,
     random_disc_formations,
 )
-from .radar import Radar
+from .radar import Radar, check_radar
 
 __all__ = [
     "FORMATION_LABELS",
@@ -128,6 +129,20 @@ class ElevationCurve:
         }
 
 
+#: Largest radius of the random disc in units of r* (r* <= H <= MAX_ALTITUDE, so that the
+#: disc stays within the coordinate range).
+MIN_DISC_FACTOR = 1e-3
+MAX_DISC_FACTOR = 30.0
+
+
+def _altitudes(altitudes: ArrayLike) -> np.ndarray:
+    """A non-empty 1-D array of altitudes within the model's range."""
+    h = _v.altitude(altitudes, "altitudes")
+    if h.ndim != 1 or h.size == 0:
+        raise FieldError("altitudes", f"expected a non-empty 1-D array, got shape {h.shape}")
+    return h
+
+
 def formations_over_altitude(
     altitudes: ArrayLike,
     n_uavs: int,
@@ -168,30 +183,35 @@ def formations_over_altitude(
         (K, n_random, M, 2) for ``random_disc`` (the same unit-disc draws scaled at every
         altitude).
     """
-    h = _v.positive(altitudes, "altitudes")
-    if h.ndim != 1:
-        raise FieldError("altitudes", f"expected a 1-D array, got shape {h.shape}")
+    h = _altitudes(altitudes)
+    check_radar(radar, None)
     if radar.per_uav:
         raise FieldError("radar", "the altitude sweeps need scalar radar fields")
-    if _v.scalar(disc_factor, "disc_factor") <= 0:
-        raise FieldError("disc_factor", f"must be > 0, got {disc_factor!r}")
-    if _v.scalar(fixed_radius, "fixed_radius") <= 0:
-        raise FieldError("fixed_radius", f"must be > 0, got {fixed_radius!r}")
+    n = _v.uav_count(n_uavs, "n_uavs")
+    factor = _v.scalar(disc_factor, "disc_factor")
+    if not MIN_DISC_FACTOR <= factor <= MAX_DISC_FACTOR:
+        raise FieldError(
+            "disc_factor",
+            f"must be between {MIN_DISC_FACTOR:g} and {MAX_DISC_FACTOR:g}, got {factor!r}",
+        )
+    _v.length(_v.scalar(fixed_radius, "fixed_radius"), "fixed_radius")
     span = _v.scalar(arc_span, "arc_span")
-    if not 0.0 < span <= np.pi:
-        raise FieldError("arc_span", f"must lie in (0, pi], got {arc_span!r}")
-    _v.count(n_random, "n_random", 1)
-    _v.count(seed, "seed", 0)
+    if not MIN_SPAN <= span <= np.pi:
+        raise FieldError("arc_span", f"must lie in [{MIN_SPAN:g}, pi] rad, got {span!r}")
+    draws = _v.count(n_random, "n_random", 1)
+    seed = _v.seed(seed, "seed")
+    size = float(h.size) * (draws + 4) * n
+    _v.check_elements(2.0 * size, "n_random", f"{size:.3g} UAV positions", copies=4)
     h = h.copy()  # results must not share memory with the caller's array
     origin = np.zeros(2)
     r_star = optimal_radius(h, radar)
     rng = np.random.default_rng(seed)
     return h, {
-        "optimal": optimal_formation(n_uavs, origin, h, radar),
-        "fixed_polygon": fixed_radius_polygon(n_uavs, np.zeros((h.size, 2)), fixed_radius),
-        "arc": arc_formation(n_uavs, origin, r_star, span=arc_span),
-        "line": line_formation(n_uavs, origin, r_star, 2.0 * r_star),
-        "random_disc": random_disc_formations(n_uavs, origin, disc_factor * r_star, n_random, rng),
+        "optimal": optimal_formation(n, origin, h, radar),
+        "fixed_polygon": fixed_radius_polygon(n, np.zeros((h.size, 2)), fixed_radius),
+        "arc": arc_formation(n, origin, r_star, span=span),
+        "line": line_formation(n, origin, r_star, 2.0 * r_star),
+        "random_disc": random_disc_formations(n, origin, factor * r_star, draws, rng),
     }
 
 
@@ -286,9 +306,8 @@ def optimal_elevation_curve(
     """
     if altitudes is None:
         altitudes = np.geomspace(1.0, 2.0e4, 241)
-    h = _v.positive(altitudes, "altitudes")
-    if h.ndim != 1:
-        raise FieldError("altitudes", f"expected a 1-D array, got shape {h.shape}")
+    h = _altitudes(altitudes)
+    check_radar(radar, None)
     if radar.per_uav:
         raise FieldError("radar", "optimal_elevation_curve needs scalar radar fields")
     h = h.copy()  # the result must not share memory with the caller's array

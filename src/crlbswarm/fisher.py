@@ -56,6 +56,12 @@ __all__ = [
 #: Relative threshold on det(J) / tr(J)^2 below which the FIM is treated as singular.
 SINGULAR_RTOL = 1e-13
 
+#: Range of the information matrices :func:`crlb_from_fim` and its siblings accept, m^-2:
+#: entries at most MAX_FIM and a trace of 0 or at least MIN_FIM, so that the determinant and
+#: the inverse neither overflow nor underflow. Every FIM of the model's ranges lies inside.
+MAX_FIM = 1e150
+MIN_FIM = 1e-150
+
 _DEFAULT_RADAR = Radar()
 
 
@@ -78,9 +84,17 @@ def range_information(distance: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.
     -------
     ndarray, shape (..., M)
         Information per range, m^-2.
+
+    Raises
+    ------
+    FieldError
+        If a distance lies outside [0.1 m, 3e7 m] (the model's range) or is not a real
+        finite number, or ``radar`` is not a :class:`~crlbswarm.Radar`.
     """
-    d = _v.positive(distance, "distance")
-    a = radar.snr_constant
+    d = _v.bounded(
+        _v.as_float_array(distance, "distance"), "distance", _v.MIN_ALTITUDE, _v.MAX_DISTANCE, " m"
+    )
+    a = check_radar(radar, None)
     _v.broadcast("radar", np.shape(a), d.shape)
     d2 = d * d
     return a / d2 / d2 + 8.0 / d2
@@ -144,9 +158,11 @@ def fisher_information(
 
     Raises
     ------
-    ValueError
-        On wrong shapes, NaN or inf positions, non-positive altitude, or a per-UAV radar
-        whose length differs from M. The message names the argument.
+    FieldError
+        (a ValueError) On wrong shapes, numbers that are not real (complex, booleans), NaN
+        or inf, coordinates beyond +-1e7 m, an altitude outside [0.1, 1e5] m (the model's
+        ranges, ``docs/sensing-model.md``), a request too large for the memory, or a
+        per-UAV radar whose length differs from M. One line naming the argument.
 
     Examples
     --------
@@ -203,6 +219,13 @@ def _fim_parts(fim: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if j.ndim < 2 or j.shape[-2:] != (2, 2):
         raise FieldError("fim", f"expected shape (..., 2, 2), got {j.shape}")
     _v.check_finite(j, "fim")
+    tr = np.abs(j[..., 0, 0]) + np.abs(j[..., 1, 1])
+    if np.any(np.abs(j) > MAX_FIM) or np.any((tr > 0) & (tr < MIN_FIM)):
+        raise FieldError(
+            "fim",
+            f"entries must be at most {MAX_FIM:g} m^-2 and the trace 0 (singular) or at least "
+            f"{MIN_FIM:g} m^-2 (the model's range; beyond, the inverse over- or underflows)",
+        )
     jxx, jyy = j[..., 0, 0], j[..., 1, 1]
     jxy = 0.5 * (j[..., 0, 1] + j[..., 1, 0])
     scale = np.maximum(np.abs(jxx) + np.abs(jyy), np.finfo(float).tiny)
@@ -225,6 +248,12 @@ def crlb_from_fim(fim: ArrayLike) -> np.ndarray:
     -------
     ndarray, shape (...)
         The trace of the inverse; ``+inf`` where the matrix is singular.
+
+    Raises
+    ------
+    FieldError
+        If ``fim`` is not symmetric positive semi-definite, not finite, or outside the
+        model's range (entries up to ``MAX_FIM``, trace 0 or at least ``MIN_FIM``).
     """
     return _a_criterion(*_fim_parts(fim))
 
@@ -283,7 +312,10 @@ def crlb(
     Returns
     -------
     ndarray, shape (...)
-        CRLB in m^2; ``+inf`` for singular geometry.
+        CRLB in m^2, finite inside the model's ranges, except ``+inf`` for a singular
+        geometry, by design: the target is not identifiable when every UAV is straight
+        above it (or all at one point over it) or all are collinear with its projection
+        (module docstring).
 
     Raises
     ------
@@ -321,7 +353,13 @@ def d_optimality(
     Returns
     -------
     ndarray, shape (...)
-        :math:`\det(\mathbf J_s^{-1})` in m^4; ``+inf`` for singular geometry.
+        :math:`\det(\mathbf J_s^{-1})` in m^4; ``+inf`` for a singular geometry (as
+        :func:`crlb`).
+
+    Raises
+    ------
+    FieldError
+        As :func:`fisher_information`.
     """
     return _d_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
 
@@ -347,6 +385,12 @@ def e_optimality(
     Returns
     -------
     ndarray, shape (...)
-        :math:`\lambda_{\max}(\mathbf J_s^{-1})` in m^2; ``+inf`` for singular geometry.
+        :math:`\lambda_{\max}(\mathbf J_s^{-1})` in m^2; ``+inf`` for a singular
+        geometry (as :func:`crlb`).
+
+    Raises
+    ------
+    FieldError
+        As :func:`fisher_information`.
     """
     return _e_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))

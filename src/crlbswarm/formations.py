@@ -38,6 +38,17 @@ __all__ = [
 ]
 
 
+#: Smallest span of an arc, rad: narrower, the UAVs are on one line through the target
+#: and the CRLB (about 1/span^2) overflows.
+MIN_SPAN = 1e-6
+
+
+def _check_size(batch: tuple[int, ...], n: int, name: str) -> None:
+    """Refuse, before allocating, formations that would not fit in memory."""
+    size = float(np.prod(batch, dtype=float)) * n
+    _v.check_elements(2.0 * size, name, f"{size:.3g} UAV positions", copies=3)
+
+
 def fixed_radius_polygon(
     n_uavs: int, target_xy: ArrayLike, radius: ArrayLike = 5.0, rotation: float = 0.0
 ) -> np.ndarray:
@@ -60,8 +71,9 @@ def fixed_radius_polygon(
         Horizontal positions, m.
     """
     n = _v.uav_count(n_uavs, "n_uavs")
-    r = _v.positive(radius, "radius")
-    return regular_polygon(n, target_xy, r, rotation)
+    s = _v.location(target_xy, "target_xy")
+    r = _v.length(radius, "radius")
+    return regular_polygon(n, s, r, rotation)
 
 
 def arc_formation(
@@ -97,14 +109,16 @@ def arc_formation(
         Horizontal positions, m.
     """
     n = _v.uav_count(n_uavs, "n_uavs")
-    s = _v.point(target_xy, "target_xy")
-    r = _v.positive(radius, "radius")
+    s = _v.location(target_xy, "target_xy")
+    r = _v.length(radius, "radius")
     width = _v.scalar(span, "span")
-    if not 0.0 < width <= np.pi:
-        raise FieldError("span", f"must lie in (0, pi], got {span!r}")
-    theta = _v.scalar(heading, "heading") + width * (np.arange(n) / (n - 1) - 0.5)
+    if not MIN_SPAN <= width <= np.pi:
+        raise FieldError("span", f"must lie in [{MIN_SPAN:g}, pi] rad, got {width!r}")
+    psi = _v.angle(heading, "heading")
+    batch = _v.broadcast("radius", s.shape[:-1], r.shape)
+    _check_size(batch, n, "n_uavs")
+    theta = psi + width * (np.arange(n) / (n - 1) - 0.5)
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
-    _v.broadcast("radius", s.shape[:-1], r.shape)
     return s[..., None, :] + r[..., None, None] * unit
 
 
@@ -141,12 +155,13 @@ def line_formation(
         Horizontal positions, m.
     """
     n = _v.uav_count(n_uavs, "n_uavs")
-    s = _v.point(target_xy, "target_xy")
-    off = _v.positive(offset, "offset")
-    size = _v.positive(length, "length")
-    psi = _v.scalar(heading, "heading")
+    s = _v.location(target_xy, "target_xy")
+    off = _v.length(offset, "offset")
+    size = _v.length(length, "length")
+    psi = _v.angle(heading, "heading")
     batch = _v.broadcast("offset", s.shape[:-1], off.shape)
-    _v.broadcast("length", batch, size.shape)
+    batch = _v.broadcast("length", batch, size.shape)
+    _check_size(batch, n, "n_uavs")
     normal = np.array([np.cos(psi), np.sin(psi)])
     along = np.array([-np.sin(psi), np.cos(psi)])
     t = np.arange(n) / (n - 1) - 0.5
@@ -187,11 +202,12 @@ def random_disc_formations(
     """
     n = _v.uav_count(n_uavs, "n_uavs")
     k = _v.count(n_draws, "n_draws", 1)
-    s = _v.point(target_xy, "target_xy")
-    r = _v.positive(radius, "radius")
+    s = _v.location(target_xy, "target_xy")
+    r = _v.length(radius, "radius")
     if not isinstance(rng, np.random.Generator):
         raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
-    _v.broadcast("radius", s.shape[:-1], r.shape)
+    batch = _v.broadcast("radius", s.shape[:-1], r.shape)
+    _check_size((*batch, k), n, "n_draws")
     rho = np.sqrt(rng.random((k, n)))
     theta = 2.0 * np.pi * rng.random((k, n))
     unit = np.stack([rho * np.cos(theta), rho * np.sin(theta)], axis=-1)

@@ -15,7 +15,6 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
-from .errors import FieldError
 
 __all__ = ["azimuth_angles", "clip_norm", "elevation_angles", "regular_polygon", "slant_ranges"]
 
@@ -23,9 +22,16 @@ __all__ = ["azimuth_angles", "clip_norm", "elevation_angles", "regular_polygon",
 @njit(cache=True, inline="always")
 def clip_norm(x, y, limit):
     """The vector (x, y), scaled down to length ``limit`` if it is longer: the saturation of
-    the leader's speed and the cap on the repulsive step. Compiled kernel, no checks."""
+    the leader's speed and the cap on the repulsive step. A vector so long that its squared
+    length overflows is still scaled to ``limit`` (its direction kept). Compiled kernel, no
+    checks."""
     norm = math.sqrt(x * x + y * y)
     if norm > limit:
+        if norm == math.inf:  # the squares overflowed: measure the scaled vector instead
+            big = max(abs(x), abs(y))  # (an infinite component gives NaN: no direction)
+            x /= big
+            y /= big
+            norm = math.sqrt(x * x + y * y)
         x *= limit / norm
         y *= limit / norm
     return x, y
@@ -35,11 +41,13 @@ def check_scene(
     uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate a scene and return ``(q, s, h)`` as float arrays (not part of the API)."""
-    q = _v.positions(uav_xy, "uav_xy")
-    s = _v.point(target_xy, "target_xy")
-    h = _v.positive(altitude, "altitude")
+    q = _v.coordinates(uav_xy, "uav_xy")
+    s = _v.location(target_xy, "target_xy")
+    h = _v.altitude(altitude, "altitude")
     batch = _v.broadcast("target_xy", q.shape[:-2], s.shape[:-1])
-    _v.broadcast("altitude", batch, h.shape)
+    batch = _v.broadcast("altitude", batch, h.shape)
+    n = float(np.prod(batch, dtype=float)) * q.shape[-2]
+    _v.check_elements(n, "uav_xy", f"{n:.3g} UAV-target pairs", copies=8)
     return q, s, h
 
 
@@ -66,6 +74,12 @@ def slant_ranges(uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike) -
     -------
     ndarray, shape (..., M)
         The ranges :math:`d_m`, m.
+
+    Raises
+    ------
+    FieldError
+        As :func:`crlbswarm.fisher_information`: wrong shapes, numbers that are not real and
+        finite, coordinates or altitudes outside the model's ranges.
     """
     q, s, h = check_scene(uav_xy, target_xy, altitude)
     diff = target_offsets(q, s)
@@ -147,14 +161,22 @@ def regular_polygon(
     -------
     ndarray, shape (..., M, 2)
         The vertices, first vertex at azimuth ``rotation``.
+
+    Raises
+    ------
+    FieldError
+        If ``n_uavs`` is not an integer from 1 to 1 000 000, the result would not fit in
+        memory (refused before allocating, with the estimate), or an argument is outside
+        the model's ranges (centre within +-1e7 m, radius up to 3e7 m, rotation within
+        +-1e6 rad).
     """
-    n = _v.count(n_uavs, "n_uavs", 1)
-    c = _v.point(center_xy, "center_xy")
-    r = _v.finite(radius, "radius")
-    if np.any(r < 0):
-        raise FieldError("radius", f"must be >= 0, got {radius!r}")
-    theta0 = _v.scalar(rotation, "rotation")
-    _v.broadcast("radius", c.shape[:-1], r.shape)
+    n = _v.count(n_uavs, "n_uavs", 1, _v.MAX_UAVS)
+    c = _v.location(center_xy, "center_xy")
+    r = _v.bounded(_v.as_float_array(radius, "radius"), "radius", 0.0, _v.MAX_DISTANCE, " m")
+    theta0 = _v.angle(rotation, "rotation")
+    batch = _v.broadcast("radius", c.shape[:-1], r.shape)
+    size = float(np.prod(batch, dtype=float)) * n
+    _v.check_elements(2.0 * size, "n_uavs", f"{size:.3g} vertices", copies=3)
     theta = theta0 + 2.0 * np.pi * np.arange(n) / n
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
     return c[..., None, :] + r[..., None, None] * unit

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -75,10 +75,38 @@ class Adjacency:
         CSR row pointers.
     indices : ndarray of int64, shape (2 \\|E\\|,)
         Neighbour indices, sorted within each row.
+
+    Raises
+    ------
+    FieldError
+        If the arrays are not integer CSR arrays of an undirected graph on at least 2 UAVs
+        without self-loops in which every UAV has a neighbour (field ``indptr`` or
+        ``indices``).
     """
 
     indptr: np.ndarray
     indices: np.ndarray
+
+    def __post_init__(self) -> None:
+        ptr = _index_array(self.indptr, "indptr")
+        idx = _index_array(self.indices, "indices")
+        n = ptr.shape[0] - 1
+        if n < 1 or ptr[0] != 0 or ptr[-1] != idx.shape[0] or np.any(np.diff(ptr) < 0):
+            raise FieldError(
+                "indptr", "expected CSR row pointers: 0 first, non-decreasing, len(indices) last"
+            )
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            raise FieldError("indices", f"UAV index out of range 0..{n - 1}")
+        if n < 2 or np.any(np.diff(ptr) == 0):
+            raise FieldError("indices", "every UAV needs a neighbour (and there are at least 2)")
+        rows = np.repeat(np.arange(n), np.diff(ptr))
+        if np.any(rows == idx):
+            raise FieldError("indices", "self-loop")
+        forward = np.sort(rows * n + idx)
+        if not np.array_equal(forward, np.sort(idx * n + rows)):
+            raise FieldError("indices", "the graph must be undirected (symmetric)")
+        object.__setattr__(self, "indptr", ptr)
+        object.__setattr__(self, "indices", idx)
 
     @classmethod
     def from_graph(cls, graph: nx.Graph) -> Adjacency:
@@ -141,6 +169,42 @@ class Adjacency:
         return sp.diags_array(self.degrees.astype(float)) - adj
 
 
+#: Bytes networkx takes per edge and per node, roughly (for the memory check).
+_EDGE_BYTES = 300
+_NODE_BYTES = 600
+
+
+def _check_graph_size(kind: str, n: int, radius: object) -> None:
+    """Refuse, before building it, a graph whose networkx form would not fit in memory."""
+    edges = float(n)
+    if kind == "complete":
+        edges = n * (n - 1) / 2.0
+    elif kind == "random_geometric" and isinstance(radius, numbers.Real):
+        try:
+            r = min(abs(float(radius)), 2.0)
+        except OverflowError:  # an int beyond the floats
+            r = 2.0
+        share = min(1.0, math.pi * r * r) if math.isfinite(r) else 1.0
+        edges = max(float(n), share * n * (n - 1) / 2.0)
+    what = f"a {kind} graph on {n} UAVs ({edges:.3g} edges)"
+    _v.check_memory(_EDGE_BYTES * edges + _NODE_BYTES * n, "n_uavs", what)
+
+
+def _index_array(value: object, name: str) -> np.ndarray:
+    """A read-only 1-D int64 array of ``value`` (integers only)."""
+    try:
+        raw = np.asarray(value)
+    except Exception as exc:
+        raise FieldError(name, "expected a 1-D array of integers") from exc
+    if raw.ndim != 1 or raw.dtype.kind not in "iu":
+        raise FieldError(name, f"expected a 1-D array of integers, got {raw.dtype} {raw.shape}")
+    if raw.dtype == np.int64 and not raw.flags.writeable:
+        return raw
+    arr = raw.astype(np.int64)
+    arr.flags.writeable = False
+    return arr
+
+
 def communication_graph(
     kind: str,
     n_uavs: int,
@@ -183,7 +247,10 @@ def communication_graph(
     """
     import networkx as nx
 
-    n = _v.count(n_uavs, "n_uavs", 2)
+    n = _v.count(n_uavs, "n_uavs", 2, _v.MAX_UAVS)
+    if not isinstance(kind, str):
+        raise FieldError("graph.kind", f"expected one of {', '.join(GRAPH_KINDS)}, got {kind!r}")
+    _check_graph_size(kind, n, radius)
     if kind == "ring":
         graph = nx.cycle_graph(n)
     elif kind == "complete":
@@ -207,10 +274,12 @@ def communication_graph(
     elif kind == "edges":
         if edges is None:
             raise FieldError("graph.edges", "kind 'edges' needs an explicit edge list")
+        if isinstance(edges, str | bytes) or not isinstance(edges, Iterable):
+            raise FieldError("graph.edges", f"expected a list of pairs [m, p], got {edges!r}")
         graph = nx.Graph()
         graph.add_nodes_from(range(n))
         for i, edge in enumerate(edges):
-            if len(edge) != 2:
+            if not isinstance(edge, Sequence | np.ndarray) or len(edge) != 2:
                 raise FieldError(f"graph.edges[{i}]", f"expected a pair [m, p], got {edge!r}")
             if not all(isinstance(x, numbers.Integral) and not isinstance(x, bool) for x in edge):
                 raise FieldError(
@@ -298,7 +367,7 @@ def formation_step_limit(adjacency: Adjacency) -> float:
         The formation law converges if :math:`\varepsilon` is below this value (iff, for
         graphs of up to ``EXACT_EIGEN_MAX_NODES`` UAVs).
     """
-    return 2.0 / _largest_eigenvalue(adjacency.laplacian())
+    return 2.0 / _largest_eigenvalue(_check_adjacency(adjacency).laplacian())
 
 
 def auto_formation_step(adjacency: Adjacency) -> float:
@@ -342,9 +411,8 @@ def auto_consensus_step(adjacency: Adjacency, leader: int) -> float:
     float
         :math:`\gamma`, per step.
     """
-    return min(
-        0.5 * consensus_step_limit(adjacency, leader), 0.99 / float(adjacency.degrees.max())
-    )
+    limit = consensus_step_limit(adjacency, leader)
+    return min(0.5 * limit, 0.99 / float(adjacency.degrees.max()))
 
 
 def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:
@@ -365,6 +433,17 @@ def consensus_step_limit(adjacency: Adjacency, leader: int) -> float:
         is used as in :func:`formation_step_limit`). Scenarios require the stricter
         :math:`\gamma < 1/\Delta` (``docs/control.md``), under which no velocity overshoots.
     """
-    lap = adjacency.laplacian()
-    keep = np.setdiff1d(np.arange(adjacency.n_nodes), [leader])
+    lap = _check_adjacency(adjacency).laplacian()
+    lead = _v.count(leader, "leader", 0)
+    if lead >= adjacency.n_nodes:
+        raise FieldError("leader", f"must be a UAV index below {adjacency.n_nodes}, got {lead}")
+    keep = np.setdiff1d(np.arange(adjacency.n_nodes), [lead])
     return 2.0 / _largest_eigenvalue(lap[keep][:, keep])
+
+
+def _check_adjacency(adjacency: object) -> Adjacency:
+    if not isinstance(adjacency, Adjacency):
+        raise FieldError(
+            "adjacency", f"expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
+        )
+    return adjacency

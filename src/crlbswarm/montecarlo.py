@@ -81,6 +81,13 @@ class MonteCarloResult:
         return self.mse_ci[0] / self.crlb, self.mse_ci[1] / self.crlb
 
 
+def _check_trials(n_trials: int, n_uavs: int) -> None:
+    """Refuse, before allocating, trials whose arrays would not fit in memory (the
+    estimator holds a few dozen arrays of ``n_trials x n_uavs``)."""
+    size = float(n_trials) * n_uavs
+    _v.check_elements(size, "n_trials", f"{n_trials} trials of {n_uavs} ranges", copies=40)
+
+
 def _summarise(errors: np.ndarray, failed: np.ndarray, bound: float) -> MonteCarloResult:
     n = errors.shape[0]
     sq = np.sum(errors * errors, axis=-1)
@@ -136,23 +143,32 @@ def monte_carlo_mse(
     MonteCarloResult
         MSE with its 95 % confidence interval, the CRLB, the bias and failures.
     """
-    q = _v.positions(uav_xy, "uav_xy")
+    q = _v.coordinates(uav_xy, "uav_xy")
     if q.ndim != 2:
         raise FieldError("uav_xy", f"expected one formation of shape (M, 2), got {q.shape}")
-    s = _v.point(target_xy, "target_xy")
+    s = _v.location(target_xy, "target_xy")
     if s.shape != (2,):
         raise FieldError("target_xy", f"expected shape (2,), got {s.shape}")
     h = _v.scalar(altitude, "altitude")
+    _v.altitude(h, "altitude")
     n = _v.count(n_trials, "n_trials", 2)
+    _check_trials(n, q.shape[0])
+    if not isinstance(rng, np.random.Generator):
+        raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
+    spread = None if prior_std is None else _v.scalar(prior_std, "prior_std")
+    if spread is not None and not 0 < spread <= _v.MAX_DISTANCE:
+        raise FieldError(
+            "prior_std", f"must be > 0 and at most {_v.MAX_DISTANCE:g} m, got {spread!r}"
+        )
     batch = np.broadcast_to(q, (n, *q.shape))
     ranges = measure_ranges(batch, s, h, radar, rng)
     assert rng is not None  # (measure_ranges refuses anything but a Generator)
     init = None
-    if prior_std is not None:
-        spread = _v.scalar(prior_std, "prior_std")
-        if not spread > 0:
-            raise FieldError("prior_std", f"must be > 0, got {prior_std!r}")
+    if spread is not None:
         init = s + spread * rng.standard_normal((n, 2))
+        # (kept within the coordinate range the estimator accepts; a no-op for any prior
+        # that is not absurdly wide)
+        init = np.clip(init, -_v.MAX_COORDINATE, _v.MAX_COORDINATE)
     est = estimate_target(batch, ranges, h, radar, init=init)
     return _summarise(est.position - s, est.failed, float(crlb(q, s, h, radar)))
 
@@ -240,6 +256,8 @@ def estimator_vs_altitude(
     if altitudes is None:
         altitudes = np.geomspace(10.0, 3000.0, 12)
     n = _v.count(n_trials, "n_trials", 2)
+    _check_trials(n, _v.uav_count(n_uavs, "n_uavs"))
+    seed = _v.seed(seed, "seed")
     h, formations = formations_over_altitude(
         altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed
     )

@@ -70,6 +70,10 @@ class Obstacles:
     def __init__(self, rectangles: ArrayLike = (), circles: ArrayLike = ()) -> None:
         rects = _rows(rectangles, "rectangles", 4)
         circs = _rows(circles, "circles", 3)
+        lim = _v.MAX_COORDINATE
+        _v.bounded(rects, "rectangles", -lim, lim, " m")
+        _v.bounded(circs[:, :2], "circles", -lim, lim, " m")
+        _v.bounded(circs[:, 2], "circles", 0.0, _v.MAX_DISTANCE, " m")
         if np.any(rects[:, 0] >= rects[:, 1]) or np.any(rects[:, 2] >= rects[:, 3]):
             raise FieldError("rectangles", "need x_min < x_max and y_min < y_max")
         if np.any(circs[:, 2] <= 0):
@@ -216,7 +220,7 @@ def obstacle_clearance(positions: ArrayLike, obstacles: Obstacles) -> np.ndarray
     ndarray, shape (...)
         Clearance, m; ``+inf`` if there are no obstacles.
     """
-    q = _v.point(positions, "positions")
+    q = _v.location(positions, "positions")
     qb = np.ascontiguousarray(q).reshape(-1, 2)
     out = np.empty(qb.shape[0])
     obs = check_obstacles(obstacles)

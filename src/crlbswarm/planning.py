@@ -399,14 +399,11 @@ def _obstacle_nodes(rects: np.ndarray, circles: np.ndarray, inflation: float) ->
 
 
 def _check_inflation(inflation: object) -> float:
-    value = _v.scalar(inflation, "inflation")
-    if value < 0:
-        raise FieldError("inflation", f"must be >= 0, got {inflation!r}")
-    return value
+    return _v.in_range(inflation, "inflation", 0.0, _v.MAX_DISTANCE, " m")
 
 
 def _goal_point(goal_xy: ArrayLike, name: str) -> np.ndarray:
-    goal = _v.point(goal_xy, name)
+    goal = _v.location(goal_xy, name)
     if goal.shape != (2,):
         raise FieldError(name, f"expected shape (2,), got {goal.shape}")
     return goal
@@ -776,13 +773,14 @@ def assign_slots(start_xy: ArrayLike, slots_xy: ArrayLike, leader: int) -> np.nd
     """
     from scipy.optimize import linear_sum_assignment
 
-    start = _v.positions(start_xy, "start_xy")
-    slots = _v.positions(slots_xy, "slots_xy")
+    start = _v.coordinates(start_xy, "start_xy")
+    slots = _v.coordinates(slots_xy, "slots_xy")
     if start.ndim != 2:
         raise FieldError("start_xy", f"expected shape (M, 2), got {start.shape}")
     if slots.shape != start.shape:
         raise FieldError("slots_xy", f"expected shape {start.shape}, got {slots.shape}")
     n = start.shape[0]
+    _v.check_elements(float(n) * n, "start_xy", f"a {n} x {n} assignment", copies=3)
     lead = _v.count(leader, "leader", 0)
     if lead >= n:
         raise FieldError("leader", f"must be a UAV index below {n}, got {lead}")

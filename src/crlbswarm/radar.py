@@ -48,20 +48,56 @@ __all__ = [
 SPEED_OF_LIGHT = 299_792_458.0
 
 
+def _from_db(value: object, name: str, offset: float) -> np.ndarray:
+    """``10 ** ((value - offset) / 10)``, refusing values whose result is not a normal,
+    finite, positive number (overflow to inf or underflow to 0 or subnormals)."""
+    x = _v.finite(value, name)
+    with np.errstate(over="ignore", under="ignore"):
+        out = 10.0 ** ((x - offset) / 10.0)
+    if not np.all(np.isfinite(out) & (out >= np.finfo(float).tiny)):
+        low, high = _DB_RANGE[0] + offset, _DB_RANGE[1] + offset
+        bad = x[~(np.isfinite(out) & (out >= np.finfo(float).tiny))].flat[0]
+        raise FieldError(
+            name,
+            f"must be between {low:.0f} and {high:.0f} (10^(x/10) must be a finite, normal "
+            f"number), got {bad:g}",
+        )
+    return out
+
+
+#: Decibel values whose linear ratio is a finite, normal double: [-3076, 3082] dB.
+_DB_RANGE = (
+    10.0 * math.log10(np.finfo(float).tiny) + 0.01,
+    10.0 * math.log10(np.finfo(float).max) - 0.01,
+)
+
+
+def _db_offset(db_unit: str) -> float:
+    """30 for dBm (a power in watts), 0 for the other decibel forms."""
+    return 30.0 if db_unit == "dBm" else 0.0
+
+
 def db_to_linear(value_db: float | np.ndarray) -> float | np.ndarray:
     """Convert decibels to a linear power ratio, :math:`10^{x/10}`.
 
     Parameters
     ----------
     value_db : float or array_like
-        Value in dB.
+        Value in dB, between about -3076 and 3082 dB (the ratio must be a finite, normal
+        double).
 
     Returns
     -------
     ndarray
         The linear ratio.
+
+    Raises
+    ------
+    FieldError
+        If ``value_db`` is not a real finite number (or array of them), or lies outside that
+        range; the field is ``value_db``.
     """
-    return 10.0 ** (np.asarray(value_db, dtype=float) / 10.0)
+    return _from_db(value_db, "value_db", 0.0)
 
 
 def dbm_to_watts(value_dbm: float | np.ndarray) -> float | np.ndarray:
@@ -70,14 +106,21 @@ def dbm_to_watts(value_dbm: float | np.ndarray) -> float | np.ndarray:
     Parameters
     ----------
     value_dbm : float or array_like
-        Power in dBm.
+        Power in dBm, between about -3046 and 3112 dBm (the power in watts must be a finite,
+        normal double).
 
     Returns
     -------
     ndarray
         Power in W.
+
+    Raises
+    ------
+    FieldError
+        If ``value_dbm`` is not a real finite number (or array of them), or lies outside
+        that range; the field is ``value_dbm``.
     """
-    return 10.0 ** ((np.asarray(value_dbm, dtype=float) - 30.0) / 10.0)
+    return _from_db(value_dbm, "value_dbm", 30.0)
 
 
 def _field_value(value: object, name: str) -> float | np.ndarray:
@@ -85,7 +128,7 @@ def _field_value(value: object, name: str) -> float | np.ndarray:
         isinstance(value, np.ndarray) and value.dtype.kind not in "iuf"
     ):
         raise FieldError(
-            f"radar.{name}", f"expected a number or an array of numbers, got {value!r}"
+            f"radar.{name}", f"expected a number or an array of numbers, got {_v.short(value)}"
         )
     arr = _v.positive(value, f"radar.{name}")
     if arr.ndim == 0:
@@ -160,8 +203,7 @@ class RadarParameter:
         ndarray
             The linear value.
         """
-        convert = dbm_to_watts if self.db_unit == "dBm" else db_to_linear
-        return np.asarray(convert(np.asarray(value, dtype=float)))
+        return np.asarray(_from_db(value, "value", _db_offset(self.db_unit)))
 
     @property
     def db_default(self) -> float:
@@ -244,13 +286,25 @@ class Radar:
                 "radar",
                 f"per-UAV fields must all have the same length, got lengths {sorted(lengths)}",
             )
-        with np.errstate(over="ignore", under="ignore"):
-            a = self.tx_power * self.processing_gain * self.beta0 / (self.kappa * self.noise_power)
-        if not np.all(np.isfinite(a) & (np.asarray(a) > 0)):
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            try:
+                a = (
+                    self.tx_power
+                    * self.processing_gain
+                    * self.beta0
+                    / (self.kappa * self.noise_power)
+                )
+            except (OverflowError, ZeroDivisionError):  # Python floats raise instead
+                a = math.inf
+        low, high = _v.MIN_SNR_CONSTANT, _v.MAX_SNR_CONSTANT
+        if not np.all(np.isfinite(a) & (np.asarray(a) >= low) & (np.asarray(a) <= high)):
+            arr = np.ravel(a)
+            value = arr[~(np.isfinite(arr) & (arr >= low) & (arr <= high))][0]
             raise FieldError(
                 "radar",
-                f"A = p G_p beta0 / (kappa sigma0^2) is not a positive finite number ({a!r}); "
-                "the parameters are out of range",
+                f"A = p G_p beta0 / (kappa sigma0^2) must be between {low:g} and {high:g} "
+                "(a range standard deviation at 1 m between 1e-15 and 1e+15 m, the model's "
+                f"range), got {float(value):.3g}",
             )
         a = float(a) if np.ndim(a) == 0 else _readonly(np.asarray(a))
         object.__setattr__(self, "_snr_constant", a)
@@ -289,11 +343,7 @@ class Radar:
         for key, value in values.items():
             if key in by_db:
                 param = by_db[key]
-                _v.finite(value, f"radar.{key}")
-                with np.errstate(over="ignore", under="ignore"):
-                    lin = param.db_to_linear(value)
-                if not np.all(np.isfinite(lin) & (lin > 0)):
-                    raise FieldError(f"radar.{key}", f"{value!r} is out of range in linear units")
+                lin = _from_db(value, f"radar.{key}", _db_offset(param.db_unit))
                 name = param.name
             elif key in radar_field_names():
                 lin, name = value, key
@@ -371,9 +421,7 @@ class Radar:
             The variance of each range measurement, m^2.
         """
         d = _v.as_float_array(distance, "distance")
-        _v.check_finite(d, "distance")
-        if np.any(d < 0):
-            raise FieldError("distance", "must be >= 0")
+        _v.bounded(d, "distance", 0.0, _v.MAX_DISTANCE, " m")
         a = self.snr_constant
         _v.broadcast("radar", np.shape(a), d.shape)
         return d**4 / a
@@ -407,15 +455,15 @@ class Radar:
         )
 
 
-def check_radar(radar: object, n_uavs: int) -> float | np.ndarray:
+def check_radar(radar: object, n_uavs: int | None) -> float | np.ndarray:
     """The constant :math:`A` of ``radar`` for ``n_uavs`` UAVs, after checking both.
 
     Parameters
     ----------
     radar : Radar
         The radar.
-    n_uavs : int
-        Number of UAVs its per-UAV fields must match.
+    n_uavs : int or None
+        Number of UAVs its per-UAV fields must match (None: not checked).
 
     Returns
     -------
@@ -429,7 +477,7 @@ def check_radar(radar: object, n_uavs: int) -> float | np.ndarray:
     """
     if not isinstance(radar, Radar):
         raise FieldError("radar", f"expected a crlbswarm.Radar, got {type(radar).__name__}")
-    if radar.n_uavs is not None and radar.n_uavs != n_uavs:
+    if n_uavs is not None and radar.n_uavs is not None and radar.n_uavs != n_uavs:
         raise FieldError(
             "radar", f"per-UAV fields have length {radar.n_uavs} but there are {n_uavs} UAVs"
         )

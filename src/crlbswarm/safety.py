@@ -535,9 +535,19 @@ def _filter_batch(q, d_nom, out, rects, circles, sep, radius, decay, m_p, m_o, v
 # ---------------------------------------------------------------------------------------
 def _decay(value: object) -> float:
     rate = _v.scalar(value, "decay")
-    if not 0.0 < rate <= 1.0:
-        raise FieldError("decay", f"must lie in (0, 1], got {value!r}")
+    if not MIN_DECAY <= rate <= 1.0:
+        raise FieldError(
+            "decay",
+            f"must lie in [{MIN_DECAY:g}, 1] (below, 1 - (1 - decay)^2 rounds to 0), got {rate!r}",
+        )
     return rate
+
+
+#: Smallest barrier decay rate (the margins divide by 1 - (1 - decay)^2).
+MIN_DECAY = 1e-12
+
+#: Largest margin in standard deviations of the disturbance.
+MAX_N_SIGMA = 1e3
 
 
 def _flat(arr: np.ndarray, batch: tuple[int, ...], tail: tuple[int, ...]) -> np.ndarray:
@@ -585,24 +595,25 @@ def disturbance_margins(sigma: float, decay: float, n_sigma: float = 6.0) -> tup
     """
     s = _v.scalar(sigma, "sigma")
     if s < 0:
-        raise FieldError("sigma", f"must be >= 0, got {sigma!r}")
+        raise FieldError("sigma", f"must be >= 0, got {s!r}")
     rate = _decay(decay)
-    k = _v.scalar(n_sigma, "n_sigma")
-    if k < 0:
-        raise FieldError("n_sigma", f"must be >= 0, got {n_sigma!r}")
+    k = _v.in_range(n_sigma, "n_sigma", 0.0, MAX_N_SIGMA)
     spread = s / math.sqrt(1.0 - (1.0 - rate) ** 2)
-    return k * math.sqrt(2.0) * spread, k * spread
+    pair, obstacle = k * math.sqrt(2.0) * spread, k * spread
+    if not math.isfinite(pair):
+        raise FieldError("sigma", f"{s:g} m is so large that the margins overflow")
+    return pair, obstacle
 
 
 def _sensing_radius(value: object, least: float) -> float:
     radius = _v.as_float_array(value, "sensing_radius")
     if radius.ndim != 0 or not radius > 0:  # NaN fails too; +inf (sense everyone) is fine
-        raise FieldError("sensing_radius", f"expected a single number > 0, got {value!r}")
+        raise FieldError("sensing_radius", f"expected a single number > 0, got {_v.short(value)}")
     if radius < least:
         raise FieldError(
             "sensing_radius",
             f"must be >= min_separation + pair_margin + 2 max_speed dt = {least:g} m (a pair "
-            f"farther apart, unseen, could close the gap within one step), got {value!r}",
+            f"farther apart, unseen, could close the gap within one step), got {float(radius)!r}",
         )
     return float(radius)
 
@@ -676,8 +687,9 @@ def safety_filter(
     array([[ 0.5,  0. ],
            [-0.5,  0. ]])
     """
-    q = _v.positions(positions, "positions")
+    q = _v.coordinates(positions, "positions")
     d = _v.positions(displacements, "displacements")
+    _v.bounded(d, "displacements", -_v.MAX_DISTANCE, _v.MAX_DISTANCE, " m")
     if d.shape[-2:] != q.shape[-2:]:
         raise FieldError(
             "displacements",
@@ -685,12 +697,18 @@ def safety_filter(
         )
     batch = _v.broadcast("displacements", q.shape[:-2], d.shape[:-2])
     obs = Obstacles() if obstacles is None else check_obstacles(obstacles)
-    sep = _v.positive_scalar(min_separation, "min_separation")
-    vmax = _v.positive_scalar(max_speed, "max_speed") * _v.positive_scalar(dt, "dt")
+    sep = float(_v.length(_v.scalar(min_separation, "min_separation"), "min_separation"))
+    speed = _v.positive_scalar(max_speed, "max_speed")
+    _v.in_range(speed, "max_speed", 0.0, _v.MAX_SPEED, " m/s")
+    step = _v.positive_scalar(dt, "dt")
+    _v.in_range(step, "dt", 0.0, _v.MAX_TIME_STEP, " s")
+    vmax = speed * step
     rate = _decay(decay)
     m_p, m_o = disturbance_margins(sigma, rate)
     radius = _sensing_radius(sensing_radius, sep + m_p + 2.0 * vmax)
     tail = q.shape[-2:]
+    size = float(np.prod(batch, dtype=float)) * tail[0]
+    _v.check_elements(2.0 * size, "positions", f"{size:.3g} UAV rows", copies=3)
     qb = _flat(q, batch, tail)
     out = _flat(d, batch, tail)  # a fresh copy, overwritten in place
     rows = tail[0] - 1 + obs.count

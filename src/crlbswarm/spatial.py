@@ -104,7 +104,7 @@ def smallest_separation(positions: ArrayLike) -> np.ndarray:
     ndarray, shape (...)
         The smallest pairwise distance (+inf for a single UAV).
     """
-    q = _v.positions(positions, "positions")
+    q = _v.coordinates(positions, "positions")
     qb = np.ascontiguousarray(q).reshape(-1, *q.shape[-2:])
     out = np.empty(qb.shape[0])
     _min_separation_batch(qb, out)

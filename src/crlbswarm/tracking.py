@@ -40,6 +40,7 @@ than a strict bound. In steady state the last two no longer matter.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
@@ -57,6 +58,14 @@ __all__ = [
     "target_trajectories",
     "update",
 ]
+
+
+#: The target motion models.
+MOTION_MODELS = ("static", "constant_velocity", "turning")
+
+#: Smallest turn per step of the turning model, rad: below, the model is a constant-velocity
+#: one within rounding (and sin(w dt)/w underflows for absurdly small rates).
+MIN_TURN = 1e-9
 
 
 def motion_matrices(
@@ -83,32 +92,51 @@ def motion_matrices(
         Process-noise covariance.
     n_state : int
         2 for ``static`` (position only), 4 otherwise.
+
+    Raises
+    ------
+    FieldError
+        On an unknown model, or a time step, acceleration noise or turn rate outside the
+        model's ranges (``dt`` in (0, 1e4] s, noise up to 1e4 m/s^2, a turn rate with
+        ``|turn_rate| dt >= 1e-9`` and ``|turn_rate| <= 1e3`` rad/s).
     """
+    if not isinstance(model, str) or model not in MOTION_MODELS:
+        raise FieldError(
+            "model", f"expected static, constant_velocity or turning, got {_v.short(model)}"
+        )
     step = _v.scalar(dt, "dt")
-    if not step > 0:
-        raise FieldError("dt", f"must be > 0, got {dt!r}")
+    if not 0 < step <= _v.MAX_TIME_STEP:
+        raise FieldError(
+            "dt",
+            f"must be > 0 and at most {_v.MAX_TIME_STEP:g} s (the model's range), got {step:g}",
+        )
     sigma = _v.scalar(acceleration_noise, "acceleration_noise")
-    if sigma < 0:
-        raise FieldError("acceleration_noise", f"must be >= 0, got {acceleration_noise!r}")
+    if not 0 <= sigma <= _v.MAX_ACCELERATION:
+        raise FieldError(
+            "acceleration_noise",
+            f"must be between 0 and {_v.MAX_ACCELERATION:g} m/s^2 (the model's range), "
+            f"got {sigma:g}",
+        )
     f = np.eye(4)
     q = np.zeros((4, 4))
     if model == "static":
         return f, q, 2
     if model == "constant_velocity":
-        f[0, 2] = f[1, 3] = dt
-    elif model == "turning":
+        f[0, 2] = f[1, 3] = step
+    else:  # turning
         w = _v.scalar(turn_rate, "turn_rate")
-        if w == 0.0:
+        if not (abs(w) * step >= MIN_TURN and abs(w) <= _v.MAX_TURN_RATE):
             raise FieldError(
-                "turn_rate", f"the turning model needs a finite non-zero rate, got {turn_rate!r}"
+                "turn_rate",
+                f"the turning model needs a rate with {MIN_TURN:g} rad <= |turn_rate| dt and "
+                f"|turn_rate| <= {_v.MAX_TURN_RATE:g} rad/s, got {w:g} (for no turn, use "
+                "constant_velocity)",
             )
-        s, c = math.sin(w * dt), math.cos(w * dt)
+        s, c = math.sin(w * step), math.cos(w * step)
         f[:2, 2:] = [[s / w, -(1.0 - c) / w], [(1.0 - c) / w, s / w]]
         f[2:, 2:] = [[c, -s], [s, c]]
-    else:
-        raise FieldError("model", f"expected static, constant_velocity or turning, got {model!r}")
-    g = _noise_gain(dt)
-    q = acceleration_noise**2 * (g @ g.T)
+    g = _noise_gain(step)
+    q = sigma**2 * (g @ g.T)
     return f, q, 4
 
 
@@ -152,23 +180,41 @@ def target_trajectories(
     -------
     ndarray, shape (B, K+1, 4)
         Position and velocity of the target at every step.
+
+    Raises
+    ------
+    FieldError
+        As :func:`motion_matrices`; on a start beyond +-1e7 m or a velocity beyond
+        +-1e6 m/s; or if the trajectories would not fit in memory (refused before
+        allocating).
     """
     f, _, _ = motion_matrices(model, dt, turn_rate, acceleration_noise)
-    g = _noise_gain(dt)
+    step = _v.scalar(dt, "dt")
+    sigma = _v.scalar(acceleration_noise, "acceleration_noise")
+    g = _noise_gain(step)
     n_steps = _v.count(n_steps, "n_steps", 0)
-    if model == "static" and acceleration_noise > 0:
+    if model == "static" and sigma > 0:
         raise FieldError("acceleration_noise", "a static target takes no acceleration noise")
-    if acceleration_noise > 0 and not all(isinstance(r, np.random.Generator) for r in rngs):
+    if isinstance(rngs, np.random.Generator) or not isinstance(rngs, Sequence):
+        raise FieldError("rngs", "expected a list of numpy.random.Generator, one per run")
+    rngs = list(rngs)
+    if not rngs:
+        raise FieldError("rngs", "expected at least one numpy.random.Generator (one per run)")
+    if sigma > 0 and not all(isinstance(r, np.random.Generator) for r in rngs):
         raise FieldError("rngs", "expected one numpy.random.Generator per run")
-    start = _v.point(start_xy, "start_xy")
-    vel = _v.point(velocity, "velocity")
-    if start.shape != (2,) or vel.shape != (2,):
-        raise FieldError("start_xy", "expected shape (2,), and velocity too")
+    start = _v.location(start_xy, "start_xy")
+    vel = _v.velocity(velocity, "velocity")
+    if start.shape != (2,):
+        raise FieldError("start_xy", f"expected shape (2,), got {start.shape}")
+    if vel.shape != (2,):
+        raise FieldError("velocity", f"expected shape (2,), got {vel.shape}")
+    size = float(len(rngs)) * (n_steps + 1) * 4
+    _v.check_elements(size, "n_steps", f"{len(rngs)} runs of {n_steps + 1} steps", copies=2)
     out = np.empty((len(rngs), n_steps + 1, 4))
     out[:, 0, :2] = start
     out[:, 0, 2:] = vel if model != "static" else 0.0
-    if acceleration_noise > 0 and model != "static":
-        accel = np.stack([r.standard_normal((n_steps, 2)) for r in rngs]) * acceleration_noise
+    if sigma > 0 and model != "static":
+        accel = np.stack([r.standard_normal((n_steps, 2)) for r in rngs]) * sigma
     else:
         accel = np.zeros((len(rngs), n_steps, 2))
     # One run at a time with scalar arithmetic in a fixed order, so a run's trajectory does
@@ -209,7 +255,14 @@ def summed_range_information(
     ndarray, shape (K+1, 2, 2)
         :math:`\sum_b \mathbf J_s` over the B runs (divide by B for the mean).
     """
-    return fisher_information(uav_xy, target_xy, altitude, radar).sum(axis=0)
+    q = _v.coordinates(uav_xy, "uav_xy")
+    if q.ndim != 4:
+        raise FieldError("uav_xy", f"expected shape (B, K+1, M, 2), got {q.shape}")
+    s = _v.location(target_xy, "target_xy")
+    if s.ndim != 3:
+        raise FieldError("target_xy", f"expected shape (B, K+1, 2), got {s.shape}")
+    h = _v.scalar(altitude, "altitude")
+    return fisher_information(q, s, h, radar).sum(axis=0)
 
 
 def posterior_crlb(
@@ -244,29 +297,50 @@ def posterior_crlb(
         Bound on the mean squared position error after each step's measurement, m^2.
     """
     fim = _v.as_float_array(mean_fim, "mean_fim")
-    if fim.ndim != 3 or fim.shape[1:] != (2, 2):
+    if fim.ndim != 3 or fim.shape[1:] != (2, 2) or fim.shape[0] == 0:
         raise FieldError("mean_fim", f"expected shape (K+1, 2, 2), got {fim.shape}")
-    if n_state not in (2, 4):
-        raise FieldError("n_state", f"must be 2 or 4, got {n_state!r}")
+    _v.bounded(fim, "mean_fim", -MAX_ENTRY, MAX_ENTRY, "")
+    n = _v.count(n_state, "n_state", 2, 4)
+    if n == 3:
+        raise FieldError("n_state", f"must be 2 or 4, got {n}")
     every = _v.count(measure_every, "measure_every", 1)
-    n = n_state
+    f, q, p0 = (_matrix(x, name, n) for x, name in ((f, "f"), (q, "q"), (p0, "p0")))
     steps = fim.shape[0]
     try:
-        np.linalg.cholesky(np.asarray(p0, dtype=float)[:n, :n])
+        np.linalg.cholesky(p0[:n, :n])
     except np.linalg.LinAlgError as exc:
         raise FieldError("p0", "the prior covariance must be positive definite") from exc
     measure_every = every
     fk, qk = f[:n, :n], q[:n, :n]
-    info = np.linalg.inv(p0[:n, :n])
     out = np.empty(steps)
-    for k in range(steps):
-        if k > 0:
-            info = np.linalg.inv(qk + fk @ np.linalg.inv(info) @ fk.T)
-        if k % measure_every == 0:
-            info = info.copy()
-            info[:2, :2] += fim[k]
-        out[k] = np.trace(np.linalg.inv(info)[:2, :2])
-    return out
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            info = np.linalg.inv(p0[:n, :n])
+            for k in range(steps):
+                if k > 0:
+                    info = np.linalg.inv(qk + fk @ np.linalg.inv(info) @ fk.T)
+                if k % measure_every == 0:
+                    info = info.copy()
+                    info[:2, :2] += fim[k]
+                out[k] = np.trace(np.linalg.inv(info)[:2, :2])
+    except np.linalg.LinAlgError as exc:
+        raise FieldError("q", "the predicted information Q + F J^-1 F^T is singular") from exc
+    return _v.finite_result(
+        out, "p0", "the bound over- or underflows: f, q, p0 or mean_fim out of range"
+    )
+
+
+#: Largest magnitude of an entry of the matrices :func:`posterior_crlb` takes.
+MAX_ENTRY = 1e100
+
+
+def _matrix(value: object, name: str, n_state: int) -> np.ndarray:
+    """A finite square matrix of size ``n_state`` or 4, with entries of magnitude at most
+    :data:`MAX_ENTRY`."""
+    arr = _v.as_float_array(value, name)
+    if arr.shape not in ((4, 4), (n_state, n_state)):
+        raise FieldError(name, f"expected shape (4, 4) or ({n_state}, {n_state}), got {arr.shape}")
+    return _v.bounded(arr, name, -MAX_ENTRY, MAX_ENTRY, "")
 
 
 # ---------------------------------------------------------------------------------------
