@@ -3,8 +3,9 @@ lines and public functions.
 
 Each case mutates a valid input in one of the classes that broke before (sizes that cannot
 fit, numbers at the edge of double precision, NaN and infinities, wrong types, huge strings,
-deep nesting, odd files, odd addresses) and runs it in this process under a memory cap
-(``RLIMIT_AS``) and an alarm. The contract, checked case by case:
+deep nesting, odd files, odd addresses) and runs it in a worker process under a memory cap
+(``RLIMIT_AS``); a case that does not answer in time, or kills the worker, is a failure and
+the worker is restarted. The contract, checked case by case:
 
 * a command line ends with exit status 2, exactly one line on stderr
   (``crlbswarm: error: ...``), no traceback and nothing written; or it succeeds (status 0)
@@ -33,8 +34,9 @@ import os
 import random
 import re
 import resource
+import selectors
 import shutil
-import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -58,14 +60,6 @@ WRONG = ["text", True, [], {}, [1.0, 2.0, 3.0], "1e3", ""]
 NONFINITE = [math.nan, math.inf, -math.inf]
 
 _NUMBER = re.compile(r"(?<![\w.])(nan|inf|-inf|infinity)(?![\w])", re.IGNORECASE)
-
-
-class CaseTimeout(Exception):
-    """A case ran longer than CASE_SECONDS."""
-
-
-def _alarm(signum: int, frame: Any) -> None:
-    raise CaseTimeout()
 
 
 # -- generators ----------------------------------------------------------------------------
@@ -388,170 +382,142 @@ def cli_case(rng: random.Random, tmp: Path) -> dict[str, Any]:
 
 
 # -- public functions ----------------------------------------------------------------------
-def _api_table() -> list[tuple[str, Callable[..., Any], dict[str, Any]]]:
-    """Public functions with a valid call each."""
-    import numpy as np
-
-    import crlbswarm as cs
-
-    pos = cs.optimal_formation(6, 20.0, (0.0, 0.0))
-    return [
-        ("crlb", cs.crlb, {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0}),
-        (
-            "fisher_information",
-            cs.fisher_information,
-            {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0},
-        ),
-        (
-            "optimal_formation",
-            cs.optimal_formation,
-            {"n_uavs": 6, "altitude": 20.0, "target_xy": (0.0, 0.0)},
-        ),
-        ("optimal_elevation", cs.optimal_elevation, {"altitude": 20.0}),
-        ("crlb_bound", cs.crlb_bound, {"n_uavs": 6, "altitude": 20.0}),
-        ("regular_polygon", cs.regular_polygon, {"n": 6, "radius": 10.0}),
-        (
-            "slant_ranges",
-            cs.slant_ranges,
-            {"positions": pos, "target": (0.0, 0.0), "altitude": 20.0},
-        ),
-        (
-            "measure_ranges",
-            cs.measure_ranges,
-            {
-                "positions": pos,
-                "target": (0.0, 0.0),
-                "altitude": 20.0,
-                "rng": np.random.default_rng(0),
-            },
-        ),
-        ("db_to_linear", cs.db_to_linear, {"value_db": 3.0}),
-        ("dbm_to_watts", cs.dbm_to_watts, {"value_dbm": 20.0}),
-        ("Radar", cs.Radar, {"kappa": 1.0, "noise_power": 1e-12}),
-    ]
-
-
-def _api_value(rng: random.Random, original: Any) -> Any:
-    import numpy as np
-
-    kind = rng.choice(["extreme", "nonfinite", "complex", "bool", "zero_d", "array_scalar",
-                       "shape", "huge", "wrong"])  # fmt: skip
-    arr = np.asarray(original) if not callable(original) else None
-    if kind == "extreme":
-        value = rng.choice(EXTREME)
-        return np.full(arr.shape, value) if arr is not None and arr.ndim else value
-    if kind == "nonfinite":
-        value = rng.choice(NONFINITE)
-        return np.full(arr.shape, value) if arr is not None and arr.ndim else value
-    if kind == "complex" and arr is not None and arr.dtype.kind in "if":
-        return arr.astype(complex) + 1j
-    if kind == "bool" and arr is not None:
-        return np.ones(arr.shape, dtype=bool)
-    if kind == "zero_d":
-        return np.array(1.0)
-    if kind == "array_scalar":
-        return np.ones(rng.choice([1, 3]))
-    if kind == "shape":
-        return np.ones(rng.choice([(0,), (3,), (2, 3), (1, 1, 1)]))
-    if kind == "huge":
-        return rng.choice(HUGE_INTS)
-    return copy.deepcopy(rng.choice(WRONG))
-
-
 def api_case(rng: random.Random, tmp: Path) -> dict[str, Any]:
-    """A public function with one mutated argument."""
-    table = _api_table()
-    name, func, kwargs = rng.choice(table)
-    key = rng.choice(list(kwargs))
-    if key == "rng":
-        return api_case(rng, tmp)
-    kwargs = dict(kwargs)
-    kwargs[key] = _api_value(rng, kwargs[key])
-    return {
-        "family": "api",
-        "input": f"{name}({key}={_short(kwargs[key])})",
-        "call": (func, kwargs),
-    }
-
-
-def judge_api(func: Callable[..., Any], kwargs: dict[str, Any]) -> str | None:
-    import warnings
-
+    """A public function of ``tests/test_api_hardening.py``'s table with one or two of its
+    arguments replaced by a value of the same classes, judged by that file's contract."""
     import numpy as np
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        try:
-            result = func(**kwargs)
-        except ValueError as exc:
-            if "\n" in str(exc):
-                return "multi-line message"
-            return None
-        except Exception as exc:
-            return f"{type(exc).__name__}: {str(exc)[:160]}"
-    values = []
-    for item in result if isinstance(result, tuple) else (result,):
-        if isinstance(item, float | int | np.ndarray | np.generic):
-            arr = np.asarray(item)
-            if arr.dtype.kind in "fc":
-                values.append(arr)
-    for arr in values:
-        if not np.all(np.isfinite(arr)):
-            positions = kwargs.get("positions")
-            if positions is not None and np.ptp(np.asarray(positions, float), axis=-2).max() == 0:
-                return None  # all UAVs at one point: singular, CRLB inf by design
-            return "non-finite result"
-    return None
+    sys.path.insert(0, str(Path(__file__).parent))
+    import test_api_hardening as api
+
+    name, func, base, extra, inf_ok = rng.choice(api.SPECS)
+    draws = np.random.default_rng(rng.getrandbits(32))
+    kwargs = dict(base)
+    labels = []
+    for key in rng.sample(list(base), min(len(base), rng.choice([1, 1, 2]))):
+        pool = api._mutations(base[key], draws)
+        kwargs[key] = pool[int(draws.integers(len(pool)))]
+        labels.append(api._label(key, kwargs[key]))
+    label = ", ".join(labels)
+    return {"family": "api", "input": f"{name}({label})",
+            "call": lambda: api.check_call(name, func, kwargs, extra, inf_ok, label)}  # fmt: skip
 
 
 FAMILIES = {"scenario": scenario_case, "campaign": campaign_case, "cli": cli_case, "api": api_case}
 
 
+def run_one(family: str, seed: int, index: int) -> dict[str, Any]:
+    """Case ``index`` of ``family`` (its draws depend on the seed, the family and the index
+    only), run and judged in this process."""
+    rng = random.Random(f"{seed}:{family}:{index}")
+    tmp = Path(tempfile.mkdtemp(prefix="crlbswarm-fuzz-"))
+    start = time.perf_counter()
+    problem = None
+    case: dict[str, Any] = {"family": family, "input": "?"}
+    try:
+        case = FAMILIES[family](rng, tmp)
+        if "call" in case:
+            case.pop("call")()  # raises (pytest's Failed, or another exception) if broken
+        else:
+            outputs = case["outputs"]
+            before = _snapshot(outputs)
+            status, stdout, stderr = _run_cli(case["argv"])
+            after = _snapshot(outputs)
+            problem = judge_cli(status, stdout, stderr, before, after, outputs)
+            case["stderr"] = stderr[-300:]
+    except MemoryError:
+        problem = "MemoryError"
+    except BaseException as exc:  # the CLI must catch everything itself
+        problem = f"uncaught {type(exc).__name__}: {str(exc)[:200]}"
+        case["traceback"] = traceback.format_exc()[-800:]
+    seconds = time.perf_counter() - start
+    if problem is None and seconds > CASE_SECONDS:
+        problem = "slow"
+    shutil.rmtree(tmp, ignore_errors=True)
+    case.pop("argv", None)
+    case.pop("outputs", None)
+    case.update(problem=problem, seconds=round(seconds, 2), index=index)
+    return case
+
+
+def _worker(seed: int) -> None:
+    """Serve cases read from stdin (``family index`` per line), one JSON line each."""
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
+    for name in ("paper", "paper_safe", "sensing", "moving_target"):  # load the kernels
+        _run_cli(["simulate", name, "--out", tempfile.mkdtemp() + "/warm"])
+    print("ready", flush=True)
+    for line in sys.stdin:
+        family, index = line.split()
+        print(json.dumps(run_one(family, seed, int(index)), default=str), flush=True)
+
+
+class _Worker:
+    """A worker process; restarted after a case that hangs or kills it."""
+
+    def __init__(self, seed: int) -> None:
+        env = {k: v for k, v in os.environ.items() if k != "CRLBSWARM_DEBUG"}
+        self.proc = subprocess.Popen(
+            [sys.executable, __file__, "--worker", "--seed", str(seed)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            text=True, env=env,
+        )  # fmt: skip
+        self.selector = selectors.DefaultSelector()
+        self.selector.register(self.proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+        if self._line(120) != "ready":
+            raise RuntimeError("the fuzzing worker did not start")
+
+    def _line(self, timeout: float) -> str | None:
+        if not self.selector.select(timeout):
+            return None
+        line = self.proc.stdout.readline()  # type: ignore[union-attr]
+        return line.strip() if line else None
+
+    def run(self, family: str, index: int) -> dict[str, Any] | None:
+        """The judged case, or None if it did not answer in time or the worker died."""
+        self.proc.stdin.write(f"{family} {index}\n")  # type: ignore[union-attr]
+        self.proc.stdin.flush()  # type: ignore[union-attr]
+        line = self._line(2 * CASE_SECONDS)
+        return json.loads(line) if line else None
+
+    def close(self) -> int | None:
+        self.proc.kill()
+        return self.proc.wait()
+
+
 def run(cases: int, seed: int, families: list[str], verbose: bool = False) -> list[dict[str, Any]]:
-    """Run ``cases`` cases spread over ``families``; return the failures."""
-    signal.signal(signal.SIGALRM, _alarm)
-    rng = random.Random(seed)
+    """Run ``cases`` cases spread over ``families`` in a worker process; return the
+    failures (a case that hangs or kills the worker is one)."""
     failures = []
-    for i in range(cases):
-        family = families[i % len(families)]
-        tmp = Path(tempfile.mkdtemp(prefix="crlbswarm-fuzz-"))
-        start = time.perf_counter()
-        problem = None
-        case: dict[str, Any] = {"family": family, "input": "?"}
-        signal.alarm(CASE_SECONDS)
-        try:
-            case = FAMILIES[family](rng, tmp)
-            if "call" in case:
-                problem = judge_api(*case.pop("call"))
-            else:
-                outputs = case["outputs"]
-                before = _snapshot(outputs)
-                status, stdout, stderr = _run_cli(case["argv"])
-                after = _snapshot(outputs)
-                problem = judge_cli(status, stdout, stderr, before, after, outputs)
-                case["stderr"] = stderr[-300:]
-        except CaseTimeout:
-            problem = "hang"
-        except MemoryError:
-            problem = "MemoryError"
-        except BaseException as exc:  # the CLI must catch everything itself
-            problem = f"uncaught {type(exc).__name__}: {str(exc)[:200]}"
-            case["traceback"] = traceback.format_exc()[-800:]
-        finally:
-            signal.alarm(0)
-        seconds = time.perf_counter() - start
-        if problem is None and seconds > CASE_SECONDS:
-            problem = "slow"
-        shutil.rmtree(tmp, ignore_errors=True)
-        case.pop("argv", None)
-        case.pop("outputs", None)
-        if problem is not None:
-            case.update(problem=problem, seconds=round(seconds, 2), index=i)
-            failures.append(case)
-            print(json.dumps(case, default=str), flush=True)
-        elif verbose:
-            print(f"ok {i} {family} {case['input'][:100]} ({seconds:.2f} s)", flush=True)
+    worker = _Worker(seed)
+    try:
+        for i in range(cases):
+            family = families[i % len(families)]
+            result = worker.run(family, i)
+            if result is None:
+                alive = worker.proc.poll() is None
+                status = worker.close()
+                problem = "hang" if alive else f"worker died (status {status})"
+                result = {"family": family, "index": i, "problem": problem,
+                          "input": _describe(family, seed, i)}  # fmt: skip
+                worker = _Worker(seed)
+            if result["problem"] is not None:
+                failures.append(result)
+                print(json.dumps(result, default=str), flush=True)
+            elif verbose:
+                print(f"ok {i} {family} {result['input'][:100]} ({result['seconds']} s)",
+                      flush=True)  # fmt: skip
+    finally:
+        worker.close()
     return failures
+
+
+def _describe(family: str, seed: int, index: int) -> str:
+    """The input of a case, drawn again without running it."""
+    tmp = Path(tempfile.mkdtemp(prefix="crlbswarm-fuzz-"))
+    try:
+        return str(FAMILIES[family](random.Random(f"{seed}:{family}:{index}"), tmp)["input"])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -560,9 +526,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--family", action="append", choices=list(FAMILIES))
     parser.add_argument("--verbose", action="store_true")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
-    os.environ.pop("CRLBSWARM_DEBUG", None)
+    if args.worker:
+        _worker(args.seed)
+        return 0
     families = args.family or list(FAMILIES)
     failures = run(args.cases, args.seed, families, args.verbose)
     print(json.dumps({"cases": args.cases, "failures": len(failures)}))

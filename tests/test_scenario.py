@@ -454,7 +454,7 @@ finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 
 @settings(max_examples=40)
 @given(
-    altitude=st.floats(1e-3, 1e5),
+    altitude=st.floats(0.1, 1e5),
     target=st.tuples(finite, finite),
     rotation=finite,
     sigma=st.floats(0.0, 10.0),

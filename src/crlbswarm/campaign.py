@@ -131,6 +131,14 @@ def _short_reasons() -> Iterator[None]:
         raise type(exc)(exc.source, exc.field, _one_line(exc.reason, 5 * _QUOTE)) from None
 
 
+#: Most worker processes of a local cluster (each is a Python process with its own copy of
+#: the compiled simulator: more than a few per core only adds memory and start-up time).
+MAX_LOCAL_WORKERS = 4 * (os.cpu_count() or 1)
+
+#: Memory of one worker process of a local cluster, bytes (measured: about 250 MB).
+WORKER_BYTES = 300 * 2**20
+
+
 class SeedRange(ConfigModel):
     """Seeds ``start, start + 1, ..., start + count - 1`` for every variant."""
 
@@ -566,6 +574,13 @@ def run_campaign(
     """
     if n_workers is not None:
         _v.count(n_workers, "n_workers", 1)
+        if n_workers > MAX_LOCAL_WORKERS:
+            raise FieldError(
+                "n_workers",
+                f"{n_workers} worker processes on this machine is more than the "
+                f"{MAX_LOCAL_WORKERS} allowed (it has {os.cpu_count() or 1} cores)",
+            )
+        _v.check_memory(n_workers * WORKER_BYTES, "n_workers", f"{n_workers} worker processes")
     timeout = _v.positive_scalar(connect_timeout, "connect_timeout")
     address = None if scheduler is None else check_scheduler_address(scheduler)
     security = _security(address, tls_ca_file, tls_cert, tls_key)

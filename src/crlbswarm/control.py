@@ -197,6 +197,11 @@ class ControlGains(ConfigModel, metaclass=_OneLineErrors):
         return ControlGainsTuple(**self.model_dump())
 
 
+#: Most points the eta rule samples along the path (each is checked against every obstacle
+#: at every step of every run; thousands already resolve any passage to a millimetre).
+MAX_ETA_SAMPLES = 10_000
+
+
 class EtaRule(ConfigModel, metaclass=_OneLineErrors):
     """Rule for the scaling factor :math:`\\eta` (not in the paper; :func:`eta_target`).
 
@@ -213,7 +218,9 @@ class EtaRule(ConfigModel, metaclass=_OneLineErrors):
     margin: PositiveFloat | None = Field(
         None, description="clearance to keep, m (default: control.safety_radius)"
     )
-    samples: Annotated[int, Field(ge=2)] = Field(32, description="points sampled on the path")
+    samples: Annotated[int, Field(ge=2, le=MAX_ETA_SAMPLES)] = Field(
+        32, description=f"points sampled on the path (2 to {MAX_ETA_SAMPLES})"
+    )
 
     def margin_for(self, gains: ControlGains) -> float:
         """The clearance the rule keeps: ``margin``, or the gains' safety radius.

@@ -74,10 +74,9 @@ __all__ = [
     "steering_footprint",
 ]
 
-#: A run whose UAV is farther than this along x or y from the (believed) target, m, or at
-#: NaN, diverged (relative, so that projected coordinates far from the origin fly): ten
-#: times the model's largest coordinate, so a valid start is never "diverged".
-DIVERGENCE_LIMIT = 10 * MAX_COORDINATE
+#: A run whose UAV has a coordinate beyond this, m, or at NaN, diverged: it left the
+#: model's range (every start and target lies inside it), where the CRLB is not computed.
+DIVERGENCE_LIMIT = MAX_COORDINATE
 
 #: Bisection steps of the carrot that would cut a corner (:func:`carrot_point`).
 CARROT_BISECTIONS = 8
@@ -312,8 +311,8 @@ def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, 
             q_next[m, 0] = motion_model(q[m, 0], u[m, 0], 0.0, 0.0, dt, noise[m, 0])
             q_next[m, 1] = motion_model(q[m, 1], u[m, 1], 0.0, 0.0, dt, noise[m, 1])
     for m in range(q.shape[0]):
-        if not (abs(q_next[m, 0] - sx) < DIVERGENCE_LIMIT
-                and abs(q_next[m, 1] - sy) < DIVERGENCE_LIMIT):  # fmt: skip
+        if not (abs(q_next[m, 0]) <= DIVERGENCE_LIMIT
+                and abs(q_next[m, 1]) <= DIVERGENCE_LIMIT):  # fmt: skip
             return False
     out.cost[k] = control_cost(q, q_next, delta, vref, dt, scene.indptr, scene.indices)
     consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
@@ -414,7 +413,7 @@ def passed_nodes(cx, cy, k, nodes, next_node, reach):
 @njit(cache=True)
 def run_mission(out, inp, scene, ctl, rule, const):
     """One run from ``out.q[0]`` to the end of ``inp.noise``; returns -1, or the step at
-    which a position ran away (NaN or farther than :data:`DIVERGENCE_LIMIT` from the target)."""
+    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`)."""
     k_steps = inp.noise.shape[0]
     m_uavs = out.q.shape[1]
     leader = const.leader

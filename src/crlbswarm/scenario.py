@@ -375,7 +375,9 @@ class TargetMotionConfig(ConfigModel):
         list[Annotated[float, Field(ge=-MAX_TARGET_SPEED, le=MAX_TARGET_SPEED)]],
         Field(min_length=2, max_length=2),
     ] = Field([0.0, 0.0], description=f"initial velocity, m/s (each at most {MAX_TARGET_SPEED:g})")
-    turn_rate: FiniteFloat = Field(0.0, description="turning: rate of turn, rad/s")
+    turn_rate: Annotated[
+        float, Field(ge=-_v.MAX_TURN_RATE, le=_v.MAX_TURN_RATE, allow_inf_nan=False)
+    ] = Field(0.0, description=f"turning: rate of turn, rad/s (at most {_v.MAX_TURN_RATE:g})")
     acceleration_noise: Annotated[float, Field(ge=0, le=100)] = Field(
         0.0, description="std of the white acceleration noise per axis, m/s^2 (at most 100)"
     )

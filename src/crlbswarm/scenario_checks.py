@@ -20,10 +20,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import _validation as _v
 from .errors import FieldError
 from .graphs import Adjacency, formation_step_limit, settling_steps
 from .obstacles import Obstacles, obstacle_clearance
 from .planning import plan_route, segment_clear
+from .tracking import motion_matrices
 
 if TYPE_CHECKING:
     from .scenario import Scenario
@@ -61,6 +63,7 @@ def check_scenario(scenario: Scenario) -> None:
         field = exc.field if exc.field.startswith("graph") else "graph"
         raise FieldError(field, exc.reason) from exc
     _check_gains(scenario, adjacency)
+    _check_motion(scenario)
     _check_estimation(scenario, obstacles)
     clearance = obstacle_clearance(scenario.slots, obstacles) if obstacles.count else None
     if clearance is not None and np.any(clearance <= scenario.control.safety_radius):
@@ -183,6 +186,27 @@ def _check_route(scenario: Scenario) -> None:
                 "m of it): the formation opens up over the target and could not reach it; "
                 "move the target, rotate F* (uavs.rotation_deg) or change the altitude",
             )
+
+
+def _check_motion(scenario: Scenario) -> None:
+    """The target's motion model is within the model's range for this time step, and its
+    straight-line path stays inside the coordinate range over the mission."""
+    motion = scenario.target_motion
+    if not motion.moving:
+        return
+    try:
+        motion_matrices(motion.model, scenario.time.step, motion.turn_rate,
+                        motion.acceleration_noise)  # fmt: skip
+    except FieldError as exc:
+        raise FieldError(f"target_motion.{exc.field}", exc.reason) from None
+    travel = math.hypot(*motion.velocity) * scenario.time.duration
+    reach = float(np.max(np.abs(scenario.target))) + travel
+    if reach > _v.MAX_COORDINATE:
+        raise FieldError(
+            "target_motion.velocity",
+            f"the target would travel {travel:.3g} m over the mission and leave the model's "
+            f"range (coordinates within +-{_v.MAX_COORDINATE:g} m)",
+        )
 
 
 def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:

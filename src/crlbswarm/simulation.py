@@ -130,6 +130,19 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
     return np.array(values, dtype=np.int64)
 
 
+#: Work arrays per run of a chunk, in float64 values per UAV and step: the pre-drawn
+#: disturbance (2) and range noise (1), the chunk's positions and velocities when the batch
+#: does not keep them (4), the temporaries of the CRLB along the trajectories (about 6).
+CHUNK_VALUES_PER_UAV_STEP = 13
+
+
+def _chunk_runs(n_runs: int, k_steps: int, m_uavs: int) -> int:
+    """Runs per chunk: at most CHUNK_RUNS runs or CHUNK_BYTES of disturbance, and at least
+    ~20 chunks for long batches so that progress is reported often."""
+    per_run = k_steps * m_uavs * 2 * 8
+    return max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
+
+
 def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     """Refuse, before allocating, a batch whose arrays could not fit in memory.
 
@@ -152,8 +165,9 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     hint = "fewer runs per call" + (
         ", or keep_trajectories=False (--no-trajectories)" if keep else ""
     )
+    work = _chunk_runs(n_runs, k_steps, m_uavs) * (k_steps + 1) * m_uavs * 8
     _v.check_memory(
-        result_nbytes(n_runs, k_steps, m_uavs, keep) + CHUNK_BYTES,
+        result_nbytes(n_runs, k_steps, m_uavs, keep) + CHUNK_VALUES_PER_UAV_STEP * work,
         "seeds",
         f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
         hint,
@@ -306,8 +320,9 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
         step = int(status[bad[0]])
         raise SimulationDivergedError(
             f"run {b} (seed {seeds[bad[0]]}) diverged at step {step} "
-            f"(t = {step * sc.time.step:g} s): NaN or a UAV more than {DIVERGENCE_LIMIT:g} m "
-            "from the target; check the gains and the disturbance of the scenario"
+            f"(t = {step * sc.time.step:g} s): NaN or a UAV beyond the model's range "
+            f"(coordinates within +-{DIVERGENCE_LIMIT:g} m); check the gains and the "
+            "disturbance of the scenario"
         )
     radar = sc.radar_model
     batch.target[lo:hi] = truth[..., :2]
@@ -354,8 +369,8 @@ def simulate(
     ------
     SimulationDivergedError
         If a run produces NaN or positions beyond
-        :data:`crlbswarm.mission_kernel.DIVERGENCE_LIMIT`, naming the run, its seed and the
-        step.
+        :data:`crlbswarm.mission_kernel.DIVERGENCE_LIMIT` (the coordinate range), naming
+        the run, its seed and the step.
     """
     if not isinstance(scenario, Scenario):
         raise FieldError(
@@ -370,8 +385,7 @@ def simulate(
     batch = _Batch(sc, n_runs, keep_trajectories)
     # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of disturbance, and at least ~20 chunks
     # for long batches so that progress is reported often.
-    per_run = k_steps * m_uavs * 2 * 8
-    chunk_runs = max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
+    chunk_runs = _chunk_runs(n_runs, k_steps, m_uavs)
     buf = _ChunkBuffers(sc, chunk_runs, keep_trajectories, scene.p0.shape[0])
     for lo in range(0, n_runs, chunk_runs):
         _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args)
