@@ -1,7 +1,7 @@
 """The fuzzing of ``tests/fuzzing.py``, a short fixed-seed run: scenario files, campaign
 specs, command lines and public functions, under a memory cap, each case within 10 s.
 
-``CRLBSWARM_FUZZ_CASES`` sets the number of cases (default 160, about a minute);
+``CRLBSWARM_FUZZ_CASES`` sets the number of cases (default 320, about a minute);
 ``CRLBSWARM_FUZZ_SEED`` the seed. For a long search run ``python tests/fuzzing.py --cases
 2000 --seed N`` directly.
 """
@@ -21,7 +21,7 @@ HERE = Path(__file__).parent
 
 @pytest.mark.parametrize("family", ["scenario", "campaign", "cli", "api"])
 def test_fuzz_family(family: str, tmp_path: Path) -> None:
-    cases = int(os.environ.get("CRLBSWARM_FUZZ_CASES", "160")) // 4
+    cases = int(os.environ.get("CRLBSWARM_FUZZ_CASES", "320")) // 4
     seed = os.environ.get("CRLBSWARM_FUZZ_SEED", "2026")
     proc = subprocess.run(
         [sys.executable, str(HERE / "fuzzing.py"), "--cases", str(cases), "--seed", seed,
