@@ -399,8 +399,8 @@ def test_array_where_a_number_is_expected(altitude):
 
 def test_regular_polygon_of_a_billion_vertices_is_refused_before_allocating():
     err = _error(lambda: cs.regular_polygon(10**9, TARGET, 10.0), "n_uavs")
-    assert "at most 1000000" in err.reason
-    err = _error(lambda: cs.regular_polygon(10**6, np.zeros((10**5, 2)), 10.0), "n_uavs")
+    assert f"at most {MAX_UAVS}" in err.reason
+    err = _error(lambda: cs.regular_polygon(MAX_UAVS, np.zeros((10**6, 2)), 10.0), "n_uavs")
     assert "need about" in err.reason and "can still allocate" in err.reason
     err = _error(
         lambda: cs.random_disc_formations(6, TARGET, 10.0, 10**9, np.random.default_rng(0)),

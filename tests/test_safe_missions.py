@@ -325,7 +325,9 @@ def test_simulate_prints_outcomes_and_strict_fails_on_a_bad_run(tmp_path, capsys
     assert status == 1
     assert (tmp_path / "b" / "summary.json").is_file()  # the files are written all the same
     capsys.readouterr()
-    status = main(["simulate", "paper_safe", "--runs", "2", "--strict", "--out", str(tmp_path)])
+    status = main(
+        ["simulate", "paper_safe", "--runs", "2", "--strict", "--out", str(tmp_path / "c")]
+    )
     out, err = capsys.readouterr()
     assert status == 0
     assert "converged 2/2" in out
