@@ -337,8 +337,9 @@ class MissionResult:
         per run), ``scenario.toml`` (the scenario, readable by
         :func:`crlbswarm.load_scenario`) and ``summary.json`` (:meth:`summary`, the first
         and last seed and the crlbswarm version). They are written in a hidden folder
-        beside ``folder`` and moved into place at the end (:func:`crlbswarm.output.
-        staged_folder`), so an interrupted save leaves ``folder`` absent or complete.
+        beside ``folder`` and moved into place at the end
+        (:func:`crlbswarm.output.staged_folder`), so an interrupted save leaves ``folder``
+        absent or complete.
         :func:`load_results` reads the folder back.
 
         Parameters
