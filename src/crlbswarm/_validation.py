@@ -314,7 +314,7 @@ def check_memory(nbytes: float, name: str, what: str, hint: str = "") -> None:
     if room is not None and nbytes > MEMORY_SHARE * room:
         raise FieldError(
             name,
-            f"{what} need about {_size_text(nbytes)}, more than this process may take "
+            f"{what} would need about {_size_text(nbytes)}, more than this process may take "
             f"(half of the {_size_text(room)} it can still allocate)"
             + (f"; {hint}" if hint else ""),
         )

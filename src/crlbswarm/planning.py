@@ -73,6 +73,7 @@ __all__ = [
     "CORNER_VERTICES",
     "DEFAULT_HINT",
     "DISC_VERTICES",
+    "MAX_ROADMAP_OBSTACLES",
     "NODE_MARGIN",
     "FormationConfig",
     "GuidanceConfig",
@@ -80,6 +81,7 @@ __all__ = [
     "assign_slots",
     "best_waypoint",
     "build_roadmap",
+    "check_roadmap_size",
     "next_waypoint",
     "next_waypoints",
     "plan_route",
@@ -426,6 +428,41 @@ def _nearest_obstacle(point: np.ndarray, obstacles: Obstacles) -> tuple[int, flo
     return i, float(out[i])
 
 
+#: Most obstacles a roadmap is built over: its nodes grow with the obstacles and its edges
+#: are checked against every obstacle, so the work grows with the cube of their number
+#: (256 obstacles: about a second; 1600: more than a minute).
+MAX_ROADMAP_OBSTACLES = 256
+
+
+def check_roadmap_size(obstacles: Obstacles, field: str) -> Obstacles:
+    """Refuse a roadmap over more than :data:`MAX_ROADMAP_OBSTACLES` obstacles.
+
+    Parameters
+    ----------
+    obstacles : Obstacles
+        The obstacles.
+    field : str
+        What to name in the error.
+
+    Returns
+    -------
+    Obstacles
+        The same obstacles.
+
+    Raises
+    ------
+    FieldError
+        If there are too many.
+    """
+    if obstacles.count > MAX_ROADMAP_OBSTACLES:
+        raise FieldError(
+            field,
+            f"a route planned over {obstacles.count} obstacles would take too long (the work "
+            f"grows with the cube of their number); at most {MAX_ROADMAP_OBSTACLES}",
+        )
+    return obstacles
+
+
 def build_roadmap(obstacles: Obstacles, goal_xy: ArrayLike, inflation: float) -> Roadmap:
     """The visibility roadmap toward ``goal_xy`` around the obstacles inflated by ``inflation``.
 
@@ -455,7 +492,7 @@ def build_roadmap(obstacles: Obstacles, goal_xy: ArrayLike, inflation: float) ->
     """
     import networkx as nx
 
-    obs = check_obstacles(obstacles)
+    obs = check_roadmap_size(check_obstacles(obstacles), "obstacles")
     goal = _goal_point(goal_xy, "goal_xy")
     infl = _check_inflation(inflation)
     i, d = _nearest_obstacle(goal, obs)
@@ -713,7 +750,7 @@ def plan_route(
     """
     start = _goal_point(start_xy, "start_xy")
     goal = _goal_point(goal_xy, "goal_xy")
-    obs = check_obstacles(obstacles)
+    obs = check_roadmap_size(check_obstacles(obstacles), "obstacles")
     infl = _check_inflation(inflation)
     labels = _check_names(names, obs)
     for name, text in (("field", field), ("hint", hint), ("goal_name", goal_name)):

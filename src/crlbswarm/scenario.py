@@ -80,6 +80,10 @@ MIN_MARGIN = 1e-3
 #: second; beyond a minute nothing of the paper's model holds).
 MAX_STEP = 60.0
 
+#: Most obstacles of a scenario (each is checked by every UAV at every step; with the
+#: planner on, :data:`crlbswarm.planning.MAX_ROADMAP_OBSTACLES` is the limit).
+MAX_OBSTACLES = 10_000
+
 #: Largest target speed, m/s (targets of low-altitude networks; keeps the target's path
 #: inside the model's range over a mission).
 MAX_TARGET_SPEED = 1000.0
@@ -421,7 +425,9 @@ class Scenario(ConfigModel):
     control: ControlGains = Field(ControlGains(), description="gains of the control laws")
     disturbance: DisturbanceConfig = Field(DisturbanceConfig(), description="motion noise")
     graph: GraphConfig = Field(GraphConfig(), description="communication graph")
-    obstacles: list[Obstacle] = Field(default_factory=list, description="obstacles")
+    obstacles: Annotated[list[Obstacle], Field(max_length=MAX_OBSTACLES)] = Field(
+        default_factory=list, description=f"obstacles (at most {MAX_OBSTACLES:,})"
+    )
     eta: EtaRule = Field(EtaRule(), description="rule for the scaling factor eta")
     estimation: EstimationConfig = Field(
         EstimationConfig(),

@@ -24,7 +24,7 @@ from . import _validation as _v
 from .errors import FieldError
 from .graphs import Adjacency, formation_step_limit, settling_steps
 from .obstacles import Obstacles, obstacle_clearance
-from .planning import plan_route, segment_clear
+from .planning import check_roadmap_size, plan_route, segment_clear
 from .tracking import motion_matrices
 
 if TYPE_CHECKING:
@@ -150,6 +150,11 @@ def _check_route(scenario: Scenario) -> None:
     if not scenario.planner_on:
         return
     obstacles = scenario.obstacle_set
+    try:
+        check_roadmap_size(obstacles, "guidance.planner")
+    except FieldError as exc:
+        raise FieldError(exc.field, f"{exc.reason}; merge obstacles or switch the planner "
+                         "off (guidance.planner = false)") from None  # fmt: skip
     start = _start_centre(scenario)
     if scenario.uavs.start is not None:
         for m, (x, y) in enumerate(scenario.uavs.start):

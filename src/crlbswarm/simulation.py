@@ -15,6 +15,7 @@ streams of a scenario without estimation are the same as before estimation exist
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -43,13 +44,17 @@ from .tracking import (
     target_trajectories,
 )
 
-__all__ = ["MAX_SEED", "check_memory", "simulate", "start_positions"]
+__all__ = ["MAX_ITERATED_SEEDS", "MAX_SEED", "check_memory", "simulate", "start_positions"]
 
 #: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
 
 #: Memory budget of the per-chunk work buffers (pre-drawn disturbance), bytes.
 CHUNK_BYTES = 64 * 2**20
+
+#: Most seeds taken from an iterator other than a ``range`` (which is checked without
+#: being expanded): the batch's memory is checked once they are counted.
+MAX_ITERATED_SEEDS = 1_000_000
 
 #: Largest seed (seeds are stored as int64).
 MAX_SEED = _v.MAX_SEED
@@ -121,7 +126,18 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
         _v.seed(seeds[-1], name)  # a range's values lie between its ends
         check_memory(len(seeds), k_steps, m_uavs, keep)
         return np.arange(seeds.start, seeds.stop, seeds.step, dtype=np.int64)
-    values = [0 if seed is None else seed] if seeds is None else list(seeds)
+    if seeds is None:
+        values = [0 if seed is None else seed]
+    else:
+        if isinstance(seeds, str | bytes) or not isinstance(seeds, Iterable):
+            raise FieldError("seeds", f"expected an iterable of integers, got {seeds!r}")
+        values = list(itertools.islice(seeds, MAX_ITERATED_SEEDS + 1))
+        if len(values) > MAX_ITERATED_SEEDS:
+            raise FieldError(
+                "seeds",
+                f"more than {MAX_ITERATED_SEEDS:,} seeds from an iterator; pass a range "
+                "(checked before it is expanded) or split the batch",
+            )
     if not values:
         raise FieldError("seeds", "need at least one seed")
     for s in values:
@@ -352,7 +368,9 @@ def simulate(
         Seed of a single run (default 0).
     seeds : iterable of int, optional
         Seeds of a batch of independent runs (instead of ``seed``). Run ``b`` is
-        bit-identical to ``simulate(scenario, seed=seeds[b])``.
+        bit-identical to ``simulate(scenario, seed=seeds[b])``. A ``range`` is checked
+        (its seeds and the memory of the batch) before it is expanded; other iterables
+        give at most :data:`MAX_ITERATED_SEEDS` seeds.
     keep_trajectories : bool, default True
         Keep positions and velocities of every step. With ``False`` they are dropped after
         each chunk of runs (``positions`` and ``velocities`` of the result are ``None``) and
@@ -367,6 +385,10 @@ def simulate(
 
     Raises
     ------
+    FieldError
+        (field ``seeds``) For an invalid seed, or a batch whose arrays would need more than
+        half of the memory the process may still allocate (the size needed and the size
+        available are in the message).
     SimulationDivergedError
         If a run produces NaN or positions beyond
         :data:`crlbswarm.mission_kernel.DIVERGENCE_LIMIT` (the coordinate range), naming
