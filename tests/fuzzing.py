@@ -125,7 +125,9 @@ def _scenario_mutation(rng: random.Random, data: dict[str, Any]) -> str:
         ("control.epsilon", rng.choice([1e300, 1e-300, 5e-324])),
         ("control.kg", rng.choice([1e300, 1e-300])),
         ("graph", {"kind": "complete"}),
-    ]
+        ("obstacles", [{"type": "circle", "center": [500.0 + 3 * i, 500.0], "radius": 1.0}
+                       for i in range(rng.choice([300, 20_000]))]),
+    ]  # fmt: skip
     roll = rng.random()
     if roll < 0.35:
         dotted, value = rng.choice(targeted)
@@ -136,7 +138,7 @@ def _scenario_mutation(rng: random.Random, data: dict[str, Any]) -> str:
         if dotted == "graph" and rng.random() < 0.7:
             data.setdefault("uavs", {})["count"] = rng.choice([10**4, 10**5])
         node[path[-1]] = value
-        return f"{dotted}={_short(value)}"
+        return f"{dotted}={_short(value)}"[:120]
     paths = _leaves(data)
     path = rng.choice(paths)
     if roll < 0.45:
