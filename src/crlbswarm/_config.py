@@ -10,6 +10,8 @@ field's description.
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import re
 import stat
@@ -297,7 +299,16 @@ def model_to_toml(model: BaseModel, header: str) -> str:
     """
     import tomlkit
 
+    # tomlkit builds an array one element at a time, re-indexing it at each append
+    # (quadratic: 20 000 edges take half a minute); long arrays of numbers are written as
+    # JSON text, which is valid TOML for them, in place of a placeholder string.
+    long_arrays: dict[str, str] = {}
+
     def commented(value: Any, owner: BaseModel, key: str) -> Any:
+        if _long_numeric_list(value):
+            placeholder = f"@crlbswarm-array-{len(long_arrays)}@"
+            long_arrays[f'"{placeholder}"'] = json.dumps(value)
+            value = placeholder
         item = tomlkit.item(value)
         description = type(owner).model_fields[key].description
         if description:
@@ -327,4 +338,22 @@ def model_to_toml(model: BaseModel, header: str) -> str:
             continue  # an empty list that is also the default: written as nothing
         else:
             doc.add(key, commented(value, model, key))
-    return tomlkit.dumps(doc)
+    text = tomlkit.dumps(doc)
+    for placeholder, json_array in long_arrays.items():
+        text = text.replace(placeholder, json_array, 1)
+    return text
+
+
+#: Arrays longer than this are written without tomlkit (see :func:`model_to_toml`).
+LONG_ARRAY = 64
+
+
+def _long_numeric_list(value: Any) -> bool:
+    """A list of more than :data:`LONG_ARRAY` finite numbers or lists of them."""
+
+    def numeric(v: Any) -> bool:
+        if isinstance(v, list):
+            return all(numeric(x) for x in v)
+        return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+    return isinstance(value, list) and len(value) > LONG_ARRAY and numeric(value)

@@ -112,9 +112,11 @@ def count(value: object, name: str, minimum: int, maximum: int | None = None) ->
         raise FieldError(name, f"expected an integer, got {short(value)}")
     value = int(value)
     if value < minimum:
-        raise FieldError(name, f"must be at least {minimum}, got {value}")
-    if maximum is not None and value > maximum:
-        raise FieldError(name, f"must be at most {maximum}, got {value}")
+        raise FieldError(name, f"must be at least {minimum}, got {short(value)}")
+    limit = MAX_SEED if maximum is None else maximum  # every count fits in an int64
+    if value > limit:
+        shown = "2**63 - 1" if limit == MAX_SEED else str(limit)
+        raise FieldError(name, f"must be at most {shown}, got {short(value)}")
     return value
 
 

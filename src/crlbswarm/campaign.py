@@ -87,6 +87,9 @@ MAX_TASKS = 100_000
 #: Seconds to wait for a scheduler to answer before giving up, by default.
 CONNECT_TIMEOUT = 10.0
 
+#: Longest wait for a scheduler that may be asked for, s (an hour).
+MAX_CONNECT_TIMEOUT = 3600.0
+
 #: Longest text of a value or of a worker's error quoted in a message, characters.
 _QUOTE = 200
 
@@ -170,6 +173,8 @@ class Distribution(ConfigModel):
                 raise ValueError(f"the bounds must be finite, got {_short(value)}")
             if low > high:
                 raise ValueError(f"low must be at most high, got {_short(value)}")
+            if not math.isfinite(high - low):
+                raise ValueError(f"the span high - low overflows, got {_short(value)}")
         return value
 
     @model_validator(mode="after")
@@ -501,7 +506,15 @@ def _write_part(
     import pyarrow.parquet as pq
 
     n = len(columns["seed"])
-    table = {name: values for name, values in columns.items() if name != "variant"}
+    table: dict[str, Any] = {}
+    for name, values in columns.items():
+        if name == "variant":
+            continue
+        values = np.asarray(values)
+        # A quantity that does not exist for a run (the convergence time of a run that did
+        # not converge, the clearance without obstacles) is null, not NaN or inf.
+        mask = ~np.isfinite(values) if values.dtype.kind == "f" else None
+        table[name] = pa.array(values, mask=mask)
     for field, value in changes.items():
         table[field] = pa.array([value] * n, type=schema.field(field).type)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -582,6 +595,10 @@ def run_campaign(
             )
         _v.check_memory(n_workers * WORKER_BYTES, "n_workers", f"{n_workers} worker processes")
     timeout = _v.positive_scalar(connect_timeout, "connect_timeout")
+    if timeout > MAX_CONNECT_TIMEOUT:
+        raise FieldError(
+            "connect_timeout", f"must be at most {MAX_CONNECT_TIMEOUT:g} s, got {timeout:g}"
+        )
     address = None if scheduler is None else check_scheduler_address(scheduler)
     security = _security(address, tls_ca_file, tls_cert, tls_key)
     if address is not None:

@@ -219,8 +219,11 @@ def _fim_parts(fim: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if j.ndim < 2 or j.shape[-2:] != (2, 2):
         raise FieldError("fim", f"expected shape (..., 2, 2), got {j.shape}")
     _v.check_finite(j, "fim")
-    tr = np.abs(j[..., 0, 0]) + np.abs(j[..., 1, 1])
-    if np.any(np.abs(j) > MAX_FIM) or np.any((tr > 0) & (tr < MIN_FIM)):
+    out_of_range = bool(np.any(np.abs(j) > MAX_FIM))  # first: the trace could overflow
+    if not out_of_range:
+        tr = np.abs(j[..., 0, 0]) + np.abs(j[..., 1, 1])
+        out_of_range = bool(np.any((tr > 0) & (tr < MIN_FIM)))
+    if out_of_range:
         raise FieldError(
             "fim",
             f"entries must be at most {MAX_FIM:g} m^-2 and the trace 0 (singular) or at least "
