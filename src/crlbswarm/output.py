@@ -149,9 +149,9 @@ def staged_folder(
     FieldError
         If the folder cannot be written, or holds files and ``overwrite`` is not set.
     """
-    dest = Path(path)
+    dest = Path(os.path.abspath(path))  # "." and "sub/.." have a name to stage beside
     check_output_folder(dest, field, new=True, overwrite=overwrite)
-    parent = make_output_folder(dest.absolute().parent, field)
+    parent = make_output_folder(dest.parent, field)
     _remove_stale_stages(parent, dest.name)
     stage = Path(tempfile.mkdtemp(prefix=f".{dest.name}{STAGE_INFIX}{os.getpid()}-", dir=parent))
     try:
@@ -165,14 +165,17 @@ def staged_folder(
 
 def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) -> None:
     """Move the staged files into ``dest`` (see :func:`staged_folder`)."""
-    try:
-        os.rename(stage, dest)  # dest missing, or an empty folder (POSIX)
-        return
-    except OSError:
-        if not dest.is_dir():
-            raise
-    if not overwrite:
-        raise FieldError(field, f"{str(dest)!r} was filled by something else while running")
+    if not _is_cwd(dest):  # (renamed over, the working folder would become a deleted one)
+        try:
+            os.rename(stage, dest)  # dest missing, or an empty folder (POSIX)
+            return
+        except OSError:
+            if not dest.is_dir():
+                raise
+        if not overwrite:
+            raise FieldError(
+                field, f"{str(dest)!r} was filled by something else while running"
+            )
     names = sorted(p.name for p in stage.iterdir())
     if marker in names:
         names.remove(marker)
@@ -181,6 +184,13 @@ def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) 
     for name in names:
         os.replace(stage / name, dest / name)
     stage.rmdir()
+
+
+def _is_cwd(folder: Path) -> bool:
+    try:
+        return folder.is_dir() and os.path.samefile(folder, os.getcwd())
+    except OSError:
+        return False
 
 
 def _remove_stale_stages(parent: Path, name: str) -> None:
