@@ -187,3 +187,21 @@ def test_figures_refuses_a_folder_with_files_at_once(tmp_path, capsys):
     assert time.perf_counter() - start < 5  # before half a minute of work
     assert "--force" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.txt"]
+
+
+def test_results_into_the_working_folder(tmp_path, capsys, monkeypatch):
+    """``--out .`` in an empty working folder: the files land in it (it is not renamed
+    over, which would leave the shell in a deleted folder); a second run is refused."""
+    from crlbswarm import load_results
+
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    status, _, err = run_cli(["simulate", "paper", "--out", "."], capsys)
+    assert status == 0, err
+    assert load_results(work).seeds.tolist() == [0]
+    assert os.path.samefile(os.getcwd(), work)
+    assert not list(tmp_path.glob(".*partial*"))
+    status, _, err = run_cli(["simulate", "paper", "--out", "."], capsys)
+    assert status == 2
+    assert "already holds files" in err
