@@ -51,7 +51,10 @@ def as_float_array(value: object, name: str) -> np.ndarray:
     ):
         raise FieldError(name, f"expected real numbers, got {short(value)}")
     try:
-        return np.asarray(raw, dtype=float)
+        with np.errstate(over="raise"):  # (a long double beyond double precision)
+            return np.asarray(raw, dtype=float)
+    except FloatingPointError as exc:
+        raise FieldError(name, "beyond the range of double precision") from exc
     except (TypeError, ValueError, OverflowError) as exc:
         raise FieldError(name, f"expected numbers, got {short(value)}") from exc
 

@@ -87,7 +87,8 @@ MAX_TASKS = 100_000
 #: Seconds to wait for a scheduler to answer before giving up, by default.
 CONNECT_TIMEOUT = 10.0
 
-#: Longest wait for a scheduler that may be asked for, s (an hour).
+#: Shortest and longest wait for a scheduler that may be asked for, s.
+MIN_CONNECT_TIMEOUT = 0.1
 MAX_CONNECT_TIMEOUT = 3600.0
 
 #: Longest text of a value or of a worker's error quoted in a message, characters.
@@ -595,9 +596,11 @@ def run_campaign(
             )
         _v.check_memory(n_workers * WORKER_BYTES, "n_workers", f"{n_workers} worker processes")
     timeout = _v.positive_scalar(connect_timeout, "connect_timeout")
-    if timeout > MAX_CONNECT_TIMEOUT:
+    if not MIN_CONNECT_TIMEOUT <= timeout <= MAX_CONNECT_TIMEOUT:
         raise FieldError(
-            "connect_timeout", f"must be at most {MAX_CONNECT_TIMEOUT:g} s, got {timeout:g}"
+            "connect_timeout",
+            f"must be between {MIN_CONNECT_TIMEOUT:g} and {MAX_CONNECT_TIMEOUT:g} s, "
+            f"got {timeout:g}",
         )
     address = None if scheduler is None else check_scheduler_address(scheduler)
     security = _security(address, tls_ca_file, tls_cert, tls_key)
@@ -769,7 +772,9 @@ def _dask_client(
         else:
             target = address
         try:
-            client = Client(target, timeout=timeout, security=security)
+            # (the local cluster runs here: it gets the default wait, not the user's)
+            wait = timeout if address is not None else max(timeout, CONNECT_TIMEOUT)
+            client = Client(target, timeout=wait, security=security)
         except Exception as exc:  # OSError, TimeoutError, ssl.SSLError, a foreign server...
             if address is None:
                 raise CampaignError(f"the local cluster: {_error_text(exc)}") from None

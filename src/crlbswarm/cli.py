@@ -37,6 +37,14 @@ LARGE_OUTPUT = 10**9
 _BUILTIN_HELP = "built-in name (see `crlbswarm scenario list`) or TOML file"
 
 
+def _path(text: str) -> Path:
+    """A path argument; an empty one (which would silently mean the working folder) is
+    refused."""
+    if not text:
+        raise argparse.ArgumentTypeError("empty path")
+    return Path(text)
+
+
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line on stderr (no usage dump), exit 2."""
 
@@ -202,7 +210,7 @@ def _add_figures(sub: Any) -> None:
         "--out",
         field="out_dir",
         required=True,
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="output folder (created if missing; refused if it holds files, unless --force)",
     )
@@ -290,7 +298,7 @@ def _add_simulate(sub: Any) -> None:
         "--out",
         field="folder",
         required=True,
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="output folder (missing or empty, unless --force)",
     )
@@ -321,14 +329,14 @@ def _add_sweep(sub: Any) -> None:
         "a local Dask cluster or an existing scheduler; one row of metrics per run in a "
         "Parquet dataset under DIR/runs. Re-running the same command resumes.",
     )
-    sweep.add_argument("spec", metavar="SPEC", type=Path, help="campaign spec (TOML)")
+    sweep.add_argument("spec", metavar="SPEC", type=_path, help="campaign spec (TOML)")
     _option(
         sweep,
         fields,
         "--out",
         field="out",
         required=True,
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="output folder",
     )
@@ -355,7 +363,7 @@ def _add_sweep(sub: Any) -> None:
         ("--tls-cert", "tls_cert", "this client's certificate (PEM)"),
         ("--tls-key", "tls_key", "this client's private key (PEM)"),
     ):
-        _option(sweep, fields, flag, field=field, type=Path, metavar="FILE", default=None,
+        _option(sweep, fields, flag, field=field, type=_path, metavar="FILE", default=None,
                 help=f"with a tls:// scheduler: {what}")  # fmt: skip
     _option(
         sweep,
