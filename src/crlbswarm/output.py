@@ -173,9 +173,7 @@ def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) 
             if not dest.is_dir():
                 raise
         if not overwrite:
-            raise FieldError(
-                field, f"{str(dest)!r} was filled by something else while running"
-            )
+            raise FieldError(field, f"{str(dest)!r} was filled by something else while running")
     names = sorted(p.name for p in stage.iterdir())
     if marker in names:
         names.remove(marker)
