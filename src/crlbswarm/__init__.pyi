@@ -23,12 +23,15 @@ from .control import (
     repulsion as repulsion,
 )
 from .design import (
+    attainable_crlb as attainable_crlb,
     crlb_bound as crlb_bound,
     design_report as design_report,
     information_weight as information_weight,
+    isotropic_azimuths as isotropic_azimuths,
     optimal_elevation as optimal_elevation,
     optimal_formation as optimal_formation,
     optimal_radius as optimal_radius,
+    optimal_weights as optimal_weights,
 )
 from .errors import (
     CampaignError as CampaignError,

@@ -40,12 +40,15 @@ from .geometry import regular_polygon
 from .radar import Radar, check_radar
 
 __all__ = [
+    "attainable_crlb",
     "crlb_bound",
     "design_report",
     "information_weight",
+    "isotropic_azimuths",
     "optimal_elevation",
     "optimal_formation",
     "optimal_radius",
+    "optimal_weights",
 ]
 
 _DEFAULT_RADAR = Radar()
@@ -154,8 +157,27 @@ def optimal_radius(altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.nda
     return h / np.sqrt(t)
 
 
-def _optimal_weights(n_uavs: ArrayLike, altitude: ArrayLike, radar: Radar) -> np.ndarray:
-    """Optimal :math:`w^*_m`, shape ``(..., M)`` for altitude of shape ``(...)``."""
+def optimal_weights(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+    r"""Each UAV's largest information weight :math:`w_m^* = \max_\phi w_m(\phi)`, eq. (9).
+
+    Every UAV reaches its own maximum at its own optimal elevation (:func:`optimal_elevation`
+    with its own :math:`A_m`), whatever the others do; the weights then fix the best CRLB
+    (:func:`attainable_crlb`).
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of UAVs :math:`M \ge 3`.
+    altitude : float or array_like, shape (...)
+        Flight altitude :math:`H`, m.
+    radar : Radar, optional
+        Link parameters; per-UAV fields must have length ``n_uavs``.
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        :math:`w_m^*`, m^-2.
+    """
     n = _v.uav_count(n_uavs, "n_uavs")
     check_radar(radar, n)
     h = _v.altitude(altitude, "altitude")[..., None]
@@ -164,12 +186,62 @@ def _optimal_weights(n_uavs: ArrayLike, altitude: ArrayLike, radar: Radar) -> np
     return np.broadcast_to(w, (*w.shape[:-1], n))
 
 
-def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
-    r"""Theoretical CRLB bound :math:`4 / \sum_m w_m^*`, eq. (11), m^2.
+def attainable_crlb(weights: ArrayLike) -> np.ndarray:
+    r"""The smallest :math:`\operatorname{tr}\mathbf J_s^{-1}` over the UAVs' azimuths, for
+    given information weights, m^2.
 
-    No formation of ``n_uavs`` UAVs at this altitude has a lower CRLB; :math:`F^*` attains
-    it. With per-UAV radar fields each UAV contributes its own optimal weight; the bound is
-    then attainable only if no :math:`w_m^*` exceeds the sum of the others.
+    With :math:`\mathbf J_s = \sum_m w_m \mathbf u_m \mathbf u_m^\top` and
+    :math:`z = \sum_m w_m e^{j2\theta_m}`, the eigenvalues of :math:`\mathbf J_s` are
+    :math:`(W \pm |z|)/2` with :math:`W = \sum_m w_m`, so
+    :math:`\operatorname{tr}\mathbf J_s^{-1} = 4W/(W^2 - |z|^2)`. The azimuths are free,
+    and the smallest :math:`|z|` of vectors of lengths :math:`w_m` is
+    :math:`\max(0,\, 2w_{\max} - W)` (a closed polygon exists iff no side exceeds the
+    sum of the others). Hence
+
+    .. math::
+
+        \min_\theta \operatorname{tr}\mathbf J_s^{-1} =
+        \begin{cases} 4/W & w_{\max} \le W - w_{\max} \text{ (eq. (11), attained)}\\
+        1/w_{\max} + 1/(W - w_{\max}) & \text{otherwise (one dominant UAV).}\end{cases}
+
+    Parameters
+    ----------
+    weights : array_like, shape (..., M)
+        Information weights :math:`w_m > 0`, m^-2, M >= 2.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The attainable CRLB, m^2.
+
+    Examples
+    --------
+    >>> from crlbswarm import attainable_crlb
+    >>> float(attainable_crlb([1.0, 1.0, 1.0]))  # 4 / 3: isotropic
+    1.3333333333333333
+    >>> float(attainable_crlb([10.0, 1.0, 1.0]))  # 1/10 + 1/2: the first UAV dominates
+    0.6
+    """
+    w = _v.positive(weights, "weights")
+    if w.ndim < 1 or w.shape[-1] < 2:
+        raise FieldError("weights", f"expected shape (..., M) with M >= 2, got {w.shape}")
+    total = np.sum(w, axis=-1)
+    largest = np.max(w, axis=-1)
+    rest = total - largest
+    with np.errstate(divide="ignore"):  # (rest > 0: every weight is positive)
+        dominant = 1.0 / largest + 1.0 / rest
+    return np.where(largest <= rest, 4.0 / total, dominant)
+
+
+def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
+    r"""The smallest CRLB any formation of ``n_uavs`` UAVs at this altitude attains, m^2.
+
+    Each UAV at its own optimal elevation gives the weights :math:`w_m^*`
+    (:func:`optimal_weights`), and :func:`attainable_crlb` the best azimuths for them: the
+    bound :math:`4/\sum_m w_m^*` of eq. (11) when no :math:`w_m^*` exceeds the sum of the
+    others (always with equal UAVs, the paper's case: :math:`F^*` attains it), else
+    :math:`1/w^*_{\max} + 1/(\sum_m w_m^* - w^*_{\max})` (one UAV dominates; eq. (11) is
+    not attainable). :func:`optimal_formation` attains this value in both cases.
 
     Parameters
     ----------
@@ -183,7 +255,7 @@ def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) 
     Returns
     -------
     ndarray, shape (...)
-        The bound, m^2.
+        The attainable optimum, m^2.
 
     Examples
     --------
@@ -191,7 +263,63 @@ def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) 
     >>> round(float(crlb_bound(6, 20.0)) * 1e3, 4)
     5.3476
     """
-    return 4.0 / np.sum(_optimal_weights(n_uavs, altitude, radar), axis=-1)
+    return attainable_crlb(optimal_weights(n_uavs, altitude, radar))
+
+
+def isotropic_azimuths(weights: ArrayLike, rotation: float = 0.0) -> np.ndarray:
+    r"""Azimuths :math:`\theta_m` that minimise :math:`|\sum_m w_m e^{j2\theta_m}|`, rad.
+
+    When no weight exceeds the sum of the others the sum is made zero (a weighted
+    isotropic geometry: :math:`\mathbf J_s` scalar); otherwise the dominant UAV's double
+    angle is opposite to all the others' (:math:`|z| = 2w_{\max} - W`). Construction
+    (the user guide derives it): sort the weights in decreasing order; going from the
+    smallest, each new weight either dominates the ones already placed (they are turned
+    opposite to it) or not, and then the placed ones, their double angles scaled by a
+    factor :math:`t \in [0, 1]` found by Brent's method, are bent until their resultant
+    has exactly its length, and the new weight closes the polygon. Deterministic; equal
+    weights are not given a regular polygon here (:func:`optimal_formation` keeps it).
+
+    Parameters
+    ----------
+    weights : array_like, shape (M,)
+        Information weights :math:`w_m > 0`, M >= 2.
+    rotation : float, default 0
+        Azimuth given to the first UAV, rad.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        Azimuths, rad, the first equal to ``rotation``.
+    """
+    from scipy.optimize import brentq
+
+    w = _v.positive(weights, "weights")
+    if w.ndim != 1 or w.shape[0] < 2:
+        raise FieldError("weights", f"expected shape (M,) with M >= 2, got {w.shape}")
+    rot = _v.angle(rotation, "rotation")
+    order = np.argsort(-w, kind="stable")
+    lengths = w[order]
+    alpha = np.zeros(lengths.shape[0])  # double angles 2 theta, in sorted order
+    for j in range(lengths.shape[0] - 2, -1, -1):  # add the j-th largest to the placed ones
+        placed_len, placed = lengths[j + 1 :], alpha[j + 1 :].copy()
+        if lengths[j] >= placed_len.sum():  # it dominates: the others all opposite to it
+            alpha[j + 1 :] = np.pi
+            alpha[j] = 0.0
+            continue
+
+        def excess(t: float, lens: np.ndarray = placed_len, ang: np.ndarray = placed,
+                   target: float = float(lengths[j])) -> float:  # fmt: skip
+            return float(np.abs(np.sum(lens * np.exp(1j * t * ang)))) - target
+
+        # t = 0: all aligned, resultant = their sum > the new length; t = 1: their own
+        # smallest resultant, which is at most the second largest length <= the new one.
+        t = 1.0 if excess(1.0) >= 0.0 else brentq(excess, 0.0, 1.0, xtol=1e-15, rtol=1e-15)
+        alpha[j + 1 :] = t * placed
+        resultant = np.sum(placed_len * np.exp(1j * alpha[j + 1 :]))
+        alpha[j] = np.angle(-resultant)
+    theta = np.empty_like(alpha)
+    theta[order] = 0.5 * alpha
+    return np.mod(theta - theta[0] + rot + np.pi, 2.0 * np.pi) - np.pi
 
 
 def optimal_formation(
@@ -201,11 +329,19 @@ def optimal_formation(
     radar: Radar = _DEFAULT_RADAR,
     rotation: float = 0.0,
 ) -> np.ndarray:
-    r"""The CRLB-optimal formation :math:`F^*`: a regular M-gon over the target (Sec. III).
+    r"""The CRLB-optimal formation :math:`F^*` (Sec. III), for equal or unequal UAVs.
 
-    UAV :math:`m = 1, \dots, M` sits at horizontal distance :math:`r^* = H/\tan\phi^*` from
-    the target's projection, at azimuth :math:`\theta_0 + 2\pi(m-1)/M` seen from the target,
-    so that :math:`\sum_m e^{j2\theta_m} = 0` and :math:`\mathbf J_s` is scalar (eq. (12b)).
+    Equal UAVs (the paper): a regular M-gon. UAV :math:`m = 1, \dots, M` sits at horizontal
+    distance :math:`r^* = H/\tan\phi^*` from the target's projection, at azimuth
+    :math:`\theta_0 + 2\pi(m-1)/M` seen from the target, so that
+    :math:`\sum_m e^{j2\theta_m} = 0` and :math:`\mathbf J_s` is scalar (eq. (12b)).
+
+    Unequal UAVs (per-UAV radar fields with unequal :math:`A_m`): each UAV at its own
+    optimal elevation and radius :math:`r_m^* = H/\tan\phi_m^*`, which maximises its own
+    weight :math:`w_m^*`, and azimuths from :func:`isotropic_azimuths`: a weighted isotropic
+    geometry when no :math:`w_m^*` exceeds the sum of the others, else the dominant UAV
+    opposite (in double angle) to all the others. Its CRLB is :func:`crlb_bound` in both
+    cases, the smallest of any formation at this altitude.
 
     Parameters
     ----------
@@ -216,8 +352,7 @@ def optimal_formation(
     altitude : float or array_like, shape (...)
         Flight altitude :math:`H > 0`, m; broadcasts against the batch shape of ``target_xy``.
     radar : Radar, optional
-        Link parameters. Per-UAV fields are accepted only when every UAV has the same
-        :math:`A_m` (otherwise the regular polygon is not optimal; see the user guide).
+        Link parameters; per-UAV fields (length ``n_uavs``) give unequal UAVs.
     rotation : float, default 0
         Azimuth :math:`\theta_0` of UAV 1 seen from the target, rad.
 
@@ -229,9 +364,9 @@ def optimal_formation(
     Raises
     ------
     FieldError
-        If ``n_uavs`` is not an integer from 3 to 1 000 000, the altitude is outside
+        If ``n_uavs`` is not an integer from 3 to 100 000, the altitude is outside
         [0.1, 1e5] m or the target beyond +-1e7 m (the model's ranges), or per-UAV radar
-        fields give unequal :math:`A_m`.
+        fields have another length than ``n_uavs``.
 
     Examples
     --------
@@ -244,18 +379,24 @@ def optimal_formation(
     """
     n = _v.uav_count(n_uavs, "n_uavs")
     a = np.asarray(check_radar(radar, n))
-    if radar.n_uavs is not None:
-        if not np.allclose(a, a[0], rtol=1e-12, atol=0.0):
-            raise FieldError(
-                "radar",
-                "per-UAV fields give unequal A = p G_p beta0 / (kappa sigma0^2); "
-                "the regular polygon is optimal only for equal A",
-            )
-        radar = Radar(**{k: float(np.ravel(v)[0]) for k, v in radar.to_dict().items()})
     target = _v.location(target_xy, "target_xy")
-    radius = optimal_radius(altitude, radar)
-    _v.broadcast("altitude", target.shape[:-1], radius.shape)
-    return regular_polygon(n, target, radius, rotation)
+    if radar.n_uavs is not None and np.all(a == a[0]):  # per-UAV fields, but equal A
+        radar = Radar(**{k: float(np.ravel(v)[0]) for k, v in radar.to_dict().items()})
+    if radar.n_uavs is None:  # equal UAVs: the regular polygon of the paper
+        radius = optimal_radius(altitude, radar)
+        _v.broadcast("altitude", target.shape[:-1], radius.shape)
+        return regular_polygon(n, target, radius, rotation)
+    h = _v.altitude(altitude, "altitude")
+    batch = _v.broadcast("altitude", target.shape[:-1], h.shape)
+    rot = _v.angle(rotation, "rotation")
+    h = np.broadcast_to(h, batch)
+    out = np.empty((*batch, n, 2))
+    for index in np.ndindex(*batch):  # each altitude has its own weights and azimuths
+        radius = optimal_radius(h[index], radar)  # (M,): each UAV at its own elevation
+        theta = isotropic_azimuths(optimal_weights(n, h[index], radar), rot)
+        centre = np.broadcast_to(target, (*batch, 2))[index]
+        out[index] = centre + radius[:, None] * np.stack([np.cos(theta), np.sin(theta)], -1)
+    return out
 
 
 def design_report(
