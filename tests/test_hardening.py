@@ -9,7 +9,6 @@ from __future__ import annotations
 import copy
 import itertools
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -116,7 +115,6 @@ def test_the_memory_check_follows_the_process_limit(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120).stdout  # fmt: skip
     assert out.startswith("seeds: 20000 runs of 1500 steps with 6 UAVs would need about")
-    assert resource.getrlimit(resource.RLIMIT_AS)  # (this process is left unlimited)
 
 
 # -- files -----------------------------------------------------------------------------------
@@ -201,7 +199,59 @@ def test_results_into_the_working_folder(tmp_path, capsys, monkeypatch):
     assert status == 0, err
     assert load_results(work).seeds.tolist() == [0]
     assert os.path.samefile(os.getcwd(), work)
-    assert not list(tmp_path.glob(".*partial*"))
+    assert not list(tmp_path.glob(".crlbswarm-partial-*"))
+    assert not list(work.glob(".crlbswarm-partial-*"))
     status, _, err = run_cli(["simulate", "paper", "--out", "."], capsys)
     assert status == 2
     assert "already holds files" in err
+
+
+def test_existing_folders_are_filled_not_replaced(tmp_path, capsys):
+    """A link to an empty folder, and a shared folder's group and mode, are kept (the set
+    is staged inside an existing folder and its files moved up)."""
+    real = tmp_path / "real"
+    real.mkdir()
+    real.chmod(0o2775)
+    (tmp_path / "link").symlink_to(real)
+    status, _, err = run_cli(["simulate", "paper", "--out", str(tmp_path / "link")], capsys)
+    assert status == 0, err
+    assert (tmp_path / "link").is_symlink()
+    assert (real / "summary.json").is_file()
+    assert real.stat().st_mode & 0o7777 == 0o2775
+    assert not list(real.glob(".crlbswarm-partial-*"))
+
+
+def test_long_arrays_in_toml_do_not_collide_with_user_text():
+    data = changed("paper", description="@crlbswarm-array-0@ and more")
+    count = 70
+    data["uavs"] = {"count": count, "start": [[-200.0 - 3 * (i % 10), 3.0 * (i // 10)]
+                                             for i in range(count)]}  # fmt: skip
+    sc = Scenario.from_dict(data)
+    back = Scenario.from_toml(sc.to_toml())
+    assert back == sc
+
+
+def test_campaign_folder_checks_before_any_cluster(tmp_path, capsys):
+    spec = tmp_path / "specs" / "spec.toml"
+    spec.parent.mkdir()
+    spec.write_text('base = "paper"\n[seeds]\ncount = 1\n')
+    (spec.parent / "paper").mkdir()  # a folder named like a built-in beside the spec
+    from crlbswarm.campaign import CampaignSpec
+
+    assert CampaignSpec.from_file(spec)[0].base == "paper"
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    status, _, err = run_cli(["sweep", str(spec), "--out", str(mine)], capsys)
+    assert status == 2
+    assert "no campaign" in err
+    fifo = tmp_path / "fifo"
+    fifo.mkdir()
+    if hasattr(os, "mkfifo"):
+        os.mkfifo(fifo / "spec.json")
+        start = time.perf_counter()
+        status, _, err = run_cli(["sweep", str(spec), "--out", str(fifo)], capsys)
+        assert status == 2
+        assert time.perf_counter() - start < 20  # refused, not blocked on the FIFO
+        assert "different campaign" in err
+    assert (mine / "notes.txt").read_text() == "keep"

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from crlbswarm import FieldError, load_results, load_scenario, simulate
-from crlbswarm.output import STAGE_INFIX
+from crlbswarm.output import STAGE_PREFIX
 
 #: kill -9 rounds; CRLBSWARM_LONG_TESTS=1 runs the long version.
 KILLS = 24 if os.environ.get("CRLBSWARM_LONG_TESTS") == "1" else 4
@@ -29,9 +29,9 @@ RUNS = 120
 COMMAND = [sys.executable, "-m", "crlbswarm.cli", "simulate", "paper", "--runs", str(RUNS)]
 
 
-def stages(folder: Path) -> list[Path]:
-    """Hidden staged folders of ``folder`` (results being written)."""
-    return list(folder.parent.glob(f".{folder.name}{STAGE_INFIX}*"))
+def stages(where: Path, pid: int | None = None) -> list[Path]:
+    """Hidden staged folders in ``where`` (results being written), of process ``pid``."""
+    return list(where.glob(f"{STAGE_PREFIX}{'' if pid is None else pid}*"))
 
 
 def same_results(folder: Path, reference: Path) -> None:
@@ -54,10 +54,11 @@ def test_kill_9_of_simulate_leaves_the_folder_absent_or_complete(tmp_path):
                                 stderr=subprocess.DEVNULL)  # fmt: skip
         if i % 2:  # every other kill lands while the results are being written
             deadline = time.monotonic() + 60
-            while not stages(out) and proc.poll() is None and time.monotonic() < deadline:
+            while (not stages(tmp_path, proc.pid) and proc.poll() is None
+                   and time.monotonic() < deadline):  # fmt: skip
                 time.sleep(0.002)
             time.sleep(rng.uniform(0.0, 0.3))
-            outcomes["while writing"] += bool(stages(out))
+            outcomes["while writing"] += bool(stages(tmp_path, proc.pid))
         else:
             time.sleep(rng.uniform(0.2, 3.0))
         proc.send_signal(signal.SIGKILL)
@@ -69,13 +70,12 @@ def test_kill_9_of_simulate_leaves_the_folder_absent_or_complete(tmp_path):
             outcomes["absent"] += 1
     assert outcomes["while writing"] >= 1, outcomes
     print(f"kill -9 of simulate, {KILLS} times: {outcomes}")  # (with -s: the counts)
-    # A later run into a folder whose writer was killed removes what it left beside it.
-    left = [tmp_path / f"run{i}" for i in range(KILLS)]
-    left = [out for out in left if stages(out)]
-    if left:
-        subprocess.run([*COMMAND, "--out", str(left[0])], check=True, capture_output=True)
-        same_results(left[0], reference)
-        assert not stages(left[0])
+    # A later run in the same folder removes what the killed ones left there.
+    left = stages(tmp_path)
+    out = tmp_path / "again"
+    subprocess.run([*COMMAND, "--out", str(out)], check=True, capture_output=True)
+    same_results(out, reference)
+    assert not stages(tmp_path), left
 
 
 def test_save_refuses_a_folder_with_files_and_overwrites_only_when_asked(tmp_path):
@@ -93,6 +93,7 @@ def test_save_refuses_a_folder_with_files_and_overwrites_only_when_asked(tmp_pat
     again.save(folder, overwrite=True)
     assert load_results(folder).seeds.tolist() == [5]
     assert not stages(folder)
+    assert not stages(tmp_path)
     empty = tmp_path / "empty"
     empty.mkdir()
     result.save(empty)  # an empty folder is fine

@@ -14,6 +14,7 @@ import json
 import math
 import os
 import re
+import secrets
 import stat
 import sys
 import textwrap
@@ -306,7 +307,7 @@ def model_to_toml(model: BaseModel, header: str) -> str:
 
     def commented(value: Any, owner: BaseModel, key: str) -> Any:
         if _long_numeric_list(value):
-            placeholder = f"@crlbswarm-array-{len(long_arrays)}@"
+            placeholder = f"@crlbswarm-array-{secrets.token_hex(16)}@"  # in no user text
             long_arrays[f'"{placeholder}"'] = json.dumps(value)
             value = placeholder
         item = tomlkit.item(value)
@@ -340,7 +341,9 @@ def model_to_toml(model: BaseModel, header: str) -> str:
             doc.add(key, commented(value, model, key))
     text = tomlkit.dumps(doc)
     for placeholder, json_array in long_arrays.items():
-        text = text.replace(placeholder, json_array, 1)
+        if text.count(placeholder) != 1:  # pragma: no cover - a 128-bit token collided
+            raise RuntimeError("model_to_toml: placeholder not unique")
+        text = text.replace(placeholder, json_array)
     return text
 
 

@@ -277,7 +277,12 @@ def _cgroup_room() -> int | None:
         if text == "max":
             return None
         with open("/sys/fs/cgroup/memory.current", encoding="ascii") as f:
-            return int(text) - int(f.read().strip())
+            used = int(f.read().strip())
+        with open("/sys/fs/cgroup/memory.stat", encoding="ascii") as f:  # reclaimable cache
+            for line in f:
+                if line.startswith("inactive_file "):
+                    used -= int(line.split()[1])
+        return int(text) - used
     except (OSError, ValueError):
         return None
 

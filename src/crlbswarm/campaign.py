@@ -42,6 +42,7 @@ import logging
 import math
 import os
 import socket
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated, Any
@@ -317,7 +318,11 @@ class CampaignSpec(ConfigModel):
         text, _ = read_toml_file(path)
         spec = cls.from_toml(text, source=str(path))
         beside = Path(path).parent / spec.base
-        if not Path(spec.base).is_absolute() and os.path.lexists(beside):
+        # A file beside the spec is its base; so is anything else of that name (refused
+        # later as not a regular file), unless the name is a built-in scenario's.
+        if not Path(spec.base).is_absolute() and (
+            beside.is_file() or (os.path.lexists(beside) and spec.base not in BUILTIN_SCENARIOS)
+        ):
             spec = spec.model_copy(update={"base": str(beside)})
         return spec, text
 
@@ -826,8 +831,8 @@ def _in_use(folder: Path, fd: int) -> FieldError | None:
 def _check_not_in_use(folder: Path) -> None:
     """Refuse at once, before starting a cluster, a folder another sweep holds (the lock is
     taken for good, and checked again, by :func:`_locked`)."""
-    try:
-        fd = os.open(folder / LOCK_NAME, os.O_RDONLY | os.O_CLOEXEC)
+    try:  # (non-blocking: a FIFO in its place must not hang the command)
+        fd = os.open(folder / LOCK_NAME, os.O_RDONLY | os.O_CLOEXEC | os.O_NONBLOCK)
     except OSError:  # no lock file: no campaign ever ran here
         return
     try:
@@ -844,8 +849,10 @@ def _locked(folder: Path) -> Iterator[None]:
     when the process ends, even by ``kill -9``); refuse a folder locked by another process.
     The lock file stays (removing it would let two processes lock two different files)."""
     folder.mkdir(parents=True, exist_ok=True)
-    fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NONBLOCK, 0o644)
     try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise FieldError("out", f"{LOCK_NAME} in {_short(str(folder))} is not a regular file")
         error = _in_use(folder, fd)
         if error is not None:
             raise error
@@ -883,11 +890,19 @@ def _check_same_campaign(folder: Path, canonical: str) -> None:
     """Refuse a folder holding another campaign: resuming into it would mix two datasets."""
     marker = folder / "spec.json"
     if not os.path.lexists(marker):
+        if folder.is_dir() and any(not e.name.startswith(".") for e in folder.iterdir()):
+            raise FieldError(
+                "out",
+                f"{_short(str(folder))} holds files but no campaign (no spec.json); use a new "
+                "or empty folder",
+            )
         return
     expected = canonical.encode()
     try:
-        with open(marker, "rb") as f:  # a regular file, read no further than needed
-            same = marker.is_file() and f.read(len(expected) + 1) == expected
+        if not stat.S_ISREG(os.lstat(marker).st_mode):  # a FIFO would block the read
+            raise OSError("not a regular file")
+        with open(marker, "rb") as f:  # read no further than needed
+            same = f.read(len(expected) + 1) == expected
     except OSError:
         same = False
     if not same:

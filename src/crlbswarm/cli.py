@@ -574,10 +574,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         status = _run(args)
-    if status == 0:
-        for text in dict.fromkeys(one_line(str(w.message)) for w in caught):
+    succeeded = status == 0 or (status == 1 and args.command == "simulate")  # (--strict)
+    if succeeded:
+        for text in dict.fromkeys(
+            one_line(str(w.message)) for w in caught if not issubclass(w.category, _QUIET)
+        ):
             print(f"crlbswarm: warning: {text}", file=sys.stderr)
     return status
+
+
+#: Warnings meant for developers, not for the user of the command (libraries' deprecations).
+_QUIET = (DeprecationWarning, PendingDeprecationWarning, ResourceWarning, ImportWarning)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -594,7 +601,7 @@ def _run(args: argparse.Namespace) -> int:
         kept = (
             "finished tasks are kept; run the same command again to resume"
             if args.command == "sweep"
-            else "nothing was written"
+            else "results are kept only as a complete set; none was left half-written"
         )
         print(f"crlbswarm: interrupted ({kept})", file=sys.stderr)
         return 130

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import glob
 import io
 import json
 import os
@@ -64,7 +63,7 @@ def check_output_folder(
         the folder holds files and ``overwrite`` is not set.
     """
     folder = Path(path)
-    if new and not overwrite and folder.is_dir() and any(folder.iterdir()):
+    if new and not overwrite and folder.is_dir() and _holds_files(folder):
         raise FieldError(
             field,
             f"{str(folder)!r} already holds files; choose a new or empty folder, or "
@@ -79,6 +78,11 @@ def check_output_folder(
         raise FieldError(field, f"{str(probe)!r} exists and is not a folder")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise FieldError(field, f"cannot write in {str(probe)!r}")
+
+
+def _holds_files(folder: Path) -> bool:
+    """Whether ``folder`` holds anything but staged folders left by killed writers."""
+    return any(not _stale_stage(entry) for entry in folder.iterdir())
 
 
 def make_output_folder(path: str | os.PathLike[str], field: str) -> Path:
@@ -109,24 +113,28 @@ def make_output_folder(path: str | os.PathLike[str], field: str) -> Path:
     return out
 
 
-#: Infix of the hidden folder, beside the destination, in which a result set is written
-#: before it is moved into place (:func:`staged_folder`).
-STAGE_INFIX = ".partial-"
+#: Prefix of the hidden folder in which a result set is written before it is moved into
+#: place (:func:`staged_folder`), followed by the writing process's id.
+STAGE_PREFIX = ".crlbswarm-partial-"
 
 
 @contextlib.contextmanager
 def staged_folder(
     path: str | os.PathLike[str], field: str, *, overwrite: bool = False, marker: str = ""
 ) -> Iterator[Path]:
-    """Yield a hidden folder beside ``path`` to write a set of files in; move them into
-    ``path`` when the block succeeds, remove them if it raises.
+    """Yield a hidden folder to write a set of files in; move them into ``path`` when the
+    block succeeds, remove them if it raises.
 
     The folder is refused at the start if it holds files and ``overwrite`` is not set
-    (:func:`check_output_folder`). When ``path`` is missing or empty the staged folder is
-    renamed onto it (one atomic step: after a crash ``path`` is absent or complete); when
-    the user asked to overwrite, the files are moved in one by one, ``marker`` (the file
-    whose presence marks a complete set) removed first and moved in last. Staged folders
-    left by a killed process are removed the next time the same destination is written.
+    (:func:`check_output_folder`). A missing ``path`` is staged beside it, in its parent,
+    and the staged folder is renamed to ``path`` at the end: one atomic step, so after a
+    crash ``path`` is absent or complete. An existing ``path`` (empty, or holding files the
+    user asked to replace; a mount point or a link to a folder as well) is never replaced,
+    so its owner, mode and links are kept: the set is staged inside it and its files are
+    moved up one by one, ``marker`` (the file whose presence marks a complete set) removed
+    first and moved in last. Staged folders left by a killed process are removed the next
+    time a set is written there. If the files cannot be moved into place, they are kept
+    where they were staged and the error says where.
 
     Parameters
     ----------
@@ -147,33 +155,39 @@ def staged_folder(
     Raises
     ------
     FieldError
-        If the folder cannot be written, or holds files and ``overwrite`` is not set.
+        If the folder cannot be written, or holds files and ``overwrite`` is not set, or the
+        finished set cannot be moved into it.
     """
-    dest = Path(os.path.abspath(path))  # "." and "sub/.." have a name to stage beside
+    dest = Path(os.path.abspath(path))  # "." and "sub/.." have a parent to stage in
     check_output_folder(dest, field, new=True, overwrite=overwrite)
-    parent = make_output_folder(dest.parent, field)
-    _remove_stale_stages(parent, dest.name)
-    stage = Path(tempfile.mkdtemp(prefix=f".{dest.name}{STAGE_INFIX}{os.getpid()}-", dir=parent))
+    exists = dest.is_dir()
+    home = dest if exists else make_output_folder(dest.parent, field)
+    _remove_stale_stages(home)
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{os.getpid()}-", dir=home))
+    except OSError as exc:
+        raise FieldError(field, f"cannot write in {str(home)!r}: {exc.strerror}") from None
     try:
         yield stage
         stage.chmod(0o755)  # mkdtemp makes 0700; results are meant to be shared
-        _publish(stage, dest, field, overwrite, marker)
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
+    try:
+        if exists:
+            _move_files(stage, dest, marker)
+        else:
+            os.rename(stage, dest)  # fails if something created dest meanwhile
+    except OSError as exc:
+        raise FieldError(
+            field,
+            f"the results could not be moved into {str(dest)!r} ({exc.strerror}); they are "
+            f"kept in {str(stage)!r}",
+        ) from None
 
 
-def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) -> None:
-    """Move the staged files into ``dest`` (see :func:`staged_folder`)."""
-    if not _is_cwd(dest):  # (renamed over, the working folder would become a deleted one)
-        try:
-            os.rename(stage, dest)  # dest missing, or an empty folder (POSIX)
-            return
-        except OSError:
-            if not dest.is_dir():
-                raise
-        if not overwrite:
-            raise FieldError(field, f"{str(dest)!r} was filled by something else while running")
+def _move_files(stage: Path, dest: Path, marker: str) -> None:
+    """Move the staged files up into ``dest``, the marker removed first and moved last."""
     names = sorted(p.name for p in stage.iterdir())
     if marker in names:
         names.remove(marker)
@@ -184,18 +198,18 @@ def _publish(stage: Path, dest: Path, field: str, overwrite: bool, marker: str) 
     stage.rmdir()
 
 
-def _is_cwd(folder: Path) -> bool:
-    try:
-        return folder.is_dir() and os.path.samefile(folder, os.getcwd())
-    except OSError:
+def _stale_stage(entry: Path) -> bool:
+    """Whether ``entry`` is a staged folder whose writing process no longer runs."""
+    if not entry.name.startswith(STAGE_PREFIX):
         return False
+    pid = entry.name[len(STAGE_PREFIX) :].split("-")[0]
+    return pid.isdigit() and not _running(int(pid))
 
 
-def _remove_stale_stages(parent: Path, name: str) -> None:
-    """Remove the staged folders of ``name`` whose writing process no longer runs."""
-    for stale in parent.glob(f".{glob.escape(name)}{STAGE_INFIX}*"):
-        pid = stale.name[len(name) + 1 + len(STAGE_INFIX) :].split("-")[0]
-        if pid.isdigit() and not _running(int(pid)):
+def _remove_stale_stages(folder: Path) -> None:
+    """Remove the staged folders in ``folder`` whose writing process no longer runs."""
+    for stale in folder.glob(f"{STAGE_PREFIX}*"):
+        if _stale_stage(stale):
             shutil.rmtree(stale, ignore_errors=True)
 
 

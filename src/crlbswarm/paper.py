@@ -57,8 +57,9 @@ def reproduce(
     ----------
     out_dir : str or path-like
         Output folder: missing or empty (created if missing). The files are written in a
-        hidden folder beside it and moved into place at the end, so an interrupted run
-        leaves it absent or complete.
+        hidden folder and moved into place at the end
+        (:func:`crlbswarm.output.staged_folder`), ``manifest.json`` last: an interrupted
+        run leaves a missing folder absent or complete.
     fmt : {"png", "pdf", "svg"}, default "png"
         Image format.
     n_uavs : int, default 6

@@ -336,10 +336,10 @@ class MissionResult:
         ``None``, and ``formation``, the scenario's :math:`F^*`), ``metrics.csv`` (one row
         per run), ``scenario.toml`` (the scenario, readable by
         :func:`crlbswarm.load_scenario`) and ``summary.json`` (:meth:`summary`, the first
-        and last seed and the crlbswarm version). They are written in a hidden folder
-        beside ``folder`` and moved into place at the end
-        (:func:`crlbswarm.output.staged_folder`), so an interrupted save leaves ``folder``
-        absent or complete.
+        and last seed and the crlbswarm version). They are written in a hidden folder and
+        moved into place at the end (:func:`crlbswarm.output.staged_folder`): an
+        interrupted save leaves a missing ``folder`` absent or complete, and an existing
+        one without a new ``summary.json`` (its presence marks a complete set).
         :func:`load_results` reads the folder back.
 
         Parameters

@@ -176,17 +176,19 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     Raises
     ------
     FieldError
-        (field ``seeds``) With the memory needed and the memory the process may take.
+        With the memory needed and the memory the process may take: field ``seeds`` for a
+        batch, ``scenario`` when one run is already too large.
     """
-    hint = "fewer runs per call" + (
-        ", or keep_trajectories=False (--no-trajectories)" if keep else ""
-    )
+    fixes = ["fewer runs per call"] if n_runs > 1 else []
+    if keep:
+        fixes.append("keep_trajectories=False (--no-trajectories)")
+    fixes.append("fewer UAVs or steps (uavs.count, time.duration)")
     work = _chunk_runs(n_runs, k_steps, m_uavs) * (k_steps + 1) * m_uavs * 8
     _v.check_memory(
         result_nbytes(n_runs, k_steps, m_uavs, keep) + CHUNK_VALUES_PER_UAV_STEP * work,
-        "seeds",
+        "seeds" if n_runs > 1 else "scenario",
         f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
-        hint,
+        "use " + ", or ".join(fixes),
     )
 
 
