@@ -89,6 +89,10 @@ from .montecarlo import (
     estimator_vs_altitude as estimator_vs_altitude,
     monte_carlo_mse as monte_carlo_mse,
 )
+from .multitarget import (
+    TargetAllocation as TargetAllocation,
+    allocate_targets as allocate_targets,
+)
 from .obstacles import (
     Obstacles as Obstacles,
     obstacle_clearance as obstacle_clearance,

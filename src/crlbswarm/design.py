@@ -319,7 +319,25 @@ def isotropic_azimuths(weights: ArrayLike, rotation: float = 0.0) -> np.ndarray:
         alpha[j] = np.angle(-resultant)
     theta = np.empty_like(alpha)
     theta[order] = 0.5 * alpha
-    return np.mod(theta - theta[0] + rot + np.pi, 2.0 * np.pi) - np.pi
+    theta = np.mod(theta - theta[0] + rot + np.pi, 2.0 * np.pi) - np.pi
+    return _spread_bearings(theta)
+
+
+def _spread_bearings(theta: np.ndarray) -> np.ndarray:
+    r"""The UAVs, in the order of their lines through the target (:math:`\theta \bmod \pi`),
+    put on the two sides of the target in turn (:math:`\theta` and :math:`\theta + \pi`
+    give the same :math:`\mathbf u\mathbf u^\top`): the formation surrounds the target and
+    UAVs on one line are on opposite sides. The information is unchanged, and the first UAV
+    keeps its bearing."""
+    line = np.mod(theta, np.pi)
+    order = np.argsort(line, kind="stable")
+    rank = np.empty(theta.shape[0], dtype=np.int64)
+    rank[order] = np.arange(theta.shape[0])
+    side = (rank - rank[0]) % 2  # the first UAV on side 0: its own bearing
+    own = (np.mod(theta, 2.0 * np.pi) >= np.pi).astype(np.int64)
+    target_side = (own[0] + side) % 2
+    flip = target_side != own
+    return np.where(flip, np.where(theta > 0, theta - np.pi, theta + np.pi), theta)
 
 
 def optimal_formation(

@@ -355,6 +355,40 @@ class Radar:
             linear[name] = lin
         return cls(**linear)
 
+    def take(self, indices: ArrayLike) -> Radar:
+        """The radar of some UAVs: per-UAV fields restricted to ``indices`` (scalar fields
+        kept).
+
+        Parameters
+        ----------
+        indices : array_like of int
+            UAV indices.
+
+        Returns
+        -------
+        Radar
+            The radar of those UAVs (itself if no field is per UAV).
+
+        Raises
+        ------
+        FieldError
+            If an index is out of range.
+        """
+        if not self.per_uav:
+            return self
+        idx = np.asarray(indices)
+        n = self.n_uavs or 0
+        if idx.ndim != 1 or idx.dtype.kind not in "iu" or np.any((idx < 0) | (idx >= n)):
+            raise FieldError("indices", f"expected UAV indices in 0..{n - 1}, got {idx!r}")
+        return dataclasses.replace(
+            self,
+            **{
+                name: value[idx]
+                for name in radar_field_names()
+                if isinstance(value := getattr(self, name), np.ndarray)
+            },
+        )
+
     def replace(self, **changes: Any) -> Radar:
         """Return a copy with some fields changed (validated like the constructor).
 
