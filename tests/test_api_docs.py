@@ -23,6 +23,7 @@ MODULES = [
     "crlbswarm.geometry",
     "crlbswarm.fisher",
     "crlbswarm.design",
+    "crlbswarm.constrained",
     "crlbswarm.formations",
     "crlbswarm.experiments",
     "crlbswarm.plots",

@@ -11,6 +11,12 @@ from .campaign import (
     CampaignSpec as CampaignSpec,
     run_campaign as run_campaign,
 )
+from .constrained import (
+    ConstrainedDesign as ConstrainedDesign,
+    constrained_design as constrained_design,
+    criterion_value as criterion_value,
+    optimal_value as optimal_value,
+)
 from .control import (
     ControlGains as ControlGains,
     EtaRule as EtaRule,

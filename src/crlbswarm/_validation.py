@@ -198,6 +198,10 @@ MAX_ALTITUDE = 1e5
 #: benchmark; a mission of that size already takes minutes).
 MAX_UAVS = 100_000
 
+#: Largest number of UAVs of a constrained (numerical) design: its dense SQP costs about
+#: M^3 per iteration (M = 100 takes seconds per start, docs/constrained-design.md).
+MAX_DESIGN_UAVS = 500
+
 #: Largest slant range, m: the farthest two points of the coordinate range, at the largest
 #: altitude (2 sqrt(2) 1e7 m, rounded up).
 MAX_DISTANCE = 3.0 * MAX_COORDINATE
