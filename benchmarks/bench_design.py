@@ -94,8 +94,9 @@ def figures(folder: Path) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 5))
     for j, members in enumerate(a.groups):
         p = a.positions[members]
+        label = f"target {j + 1}: {len(members)} UAVs, CRLB {a.crlb[j]:.2e} m²"
         ax.scatter(p[:, 0], p[:, 1], s=40 + 400 * radar.tx_power[members], c=f"C{j}",
-                   label=f"target {j + 1}: {len(members)} UAVs, CRLB {a.crlb[j]:.2e} m²")  # fmt: skip
+                   label=label)  # fmt: skip
         for x, y in p:
             ax.plot([targets[j, 0], x], [targets[j, 1], y], f"C{j}-", lw=0.6)
         ax.plot(*targets[j], "*", c=f"C{j}", ms=14, mec="k")
