@@ -55,6 +55,7 @@ __all__ = [
     "ConstrainedDesign",
     "constrained_design",
     "criterion_value",
+    "default_starts",
     "optimal_value",
 ]
 
@@ -62,8 +63,28 @@ __all__ = [
 #: determinant, m^4) and ``"E"`` (its largest eigenvalue, m^2).
 CRITERIA = ("A", "D", "E")
 
-#: Number of starts of :func:`constrained_design` by default (start 0 is :math:`F^*`).
+#: Number of starts of :func:`constrained_design` by default for small swarms (start 0 is
+#: :math:`F^*`); larger swarms get fewer (:func:`default_starts`), each start costing about
+#: :math:`M^3`.
 DEFAULT_STARTS = 64
+
+
+def default_starts(n_uavs: int) -> int:
+    """Starts of :func:`constrained_design` when none are given: :data:`DEFAULT_STARTS`
+    up to 16 UAVs, then fewer, ``1024 // n_uavs``, and at least 4 (M = 100: 10 starts).
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of UAVs.
+
+    Returns
+    -------
+    int
+        Number of starts.
+    """
+    return max(4, min(DEFAULT_STARTS, 1024 // max(int(n_uavs), 1)))
+
 
 #: Largest violation of a constraint, m, that a returned formation may show (the search
 #: aims at constraints tightened by :data:`MARGIN` times the formation's scale, so the
@@ -682,7 +703,7 @@ def constrained_design(
     clearance: float = 0.0,
     min_separation: float = 0.0,
     max_radius: float | None = None,
-    starts: int = DEFAULT_STARTS,
+    starts: int | None = None,
     seed: int = 0,
     rotation: float = 0.0,
 ) -> ConstrainedDesign:
@@ -724,8 +745,9 @@ def constrained_design(
         Smallest horizontal distance between two UAVs, m (0: none).
     max_radius : float, optional
         Largest horizontal distance from the target to a UAV, m (None: none).
-    starts : int, default 64
-        Number of starts (:data:`DEFAULT_STARTS`), the first :math:`F^*`.
+    starts : int, optional
+        Number of starts, the first :math:`F^*` (default :func:`default_starts`: 64 up to
+        16 UAVs, then fewer; each costs about :math:`M^3`, M = 100 some 15-30 s).
     seed : int, default 0
         Seed of the random starts.
     rotation : float, default 0
@@ -753,7 +775,10 @@ def constrained_design(
     """
     prob = _problem(n_uavs, target_xy, altitude, radar, criterion, obstacles, no_fly,
                     clearance, min_separation, max_radius)  # fmt: skip
-    n_starts = _v.count(starts, "starts", 1, 100_000)
+    n_starts = _v.count(
+        default_starts(_v.uav_count(n_uavs, "n_uavs")) if starts is None else starts,
+        "starts", 1, 100_000,
+    )  # fmt: skip
     rng = np.random.default_rng(_v.seed(seed, "seed"))
     fstar = optimal_formation(prob.n, prob.target, prob.altitude, radar,
                               _v.angle(rotation, "rotation"))  # fmt: skip
