@@ -119,6 +119,12 @@ SPECS: list[tuple[str, Callable[..., Any], dict[str, Any], set[str], bool]] = [
     ("crlb_vs_altitude", cs.crlb_vs_altitude, dict(altitudes=[10.0, 50.0], n_uavs=4, radar=cs.Radar(), fixed_radius=5.0, arc_span=1.5, disc_factor=2.0, n_random=3, seed=0), set(), False),
     ("optimal_elevation_curve", cs.optimal_elevation_curve, dict(altitudes=[1.0, 10.0, 100.0], radar=cs.Radar()), set(), False),
     ("monte_carlo_mse", cs.monte_carlo_mse, dict(uav_xy=F6, target_xy=TARGET, altitude=20.0, radar=cs.Radar(), n_trials=8, rng=Rng, prior_std=1.0), set(), True),
+    ("optimal_weights", cs.optimal_weights, dict(n_uavs=4, altitude=20.0, radar=cs.Radar(tx_power=[0.1, 0.2, 0.1, 0.3])), set(), False),
+    ("attainable_crlb", cs.attainable_crlb, dict(weights=[1.0, 2.0, 0.5]), set(), False),
+    ("isotropic_azimuths", cs.isotropic_azimuths, dict(weights=[1.0, 2.0, 0.5, 0.7], rotation=0.2), set(), False),
+    ("Radar.take", cs.Radar(tx_power=[0.1, 0.2, 0.3]).take, dict(indices=[0, 2]), set(), False),
+    ("allocate_targets", cs.allocate_targets, dict(targets_xy=[[0.0, 0.0], [200.0, 0.0]], n_uavs=6, altitude=20.0, radar=cs.Radar(), objective="sum", method="auto"), set(), False),
+    ("constrained_design", cs.constrained_design, dict(n_uavs=4, target_xy=TARGET, altitude=20.0, radar=cs.Radar(), criterion="A", max_radius=12.0, min_separation=1.0, starts=2, seed=0), set(), False),
     ("estimator_vs_altitude", cs.estimator_vs_altitude, dict(altitudes=[20.0], n_uavs=4, radar=cs.Radar(), n_trials=3, seed=0, fixed_radius=5.0, arc_span=1.5, disc_factor=2.0), set(), False),
 ]  # fmt: skip
 

@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike
 
 from . import _validation as _v
 from .errors import FieldError
-from .fisher import crlb
+from .fisher import MAX_FIM, MIN_FIM, crlb
 from .geometry import regular_polygon
 from .radar import Radar, check_radar
 
@@ -222,15 +222,27 @@ def attainable_crlb(weights: ArrayLike) -> np.ndarray:
     >>> float(attainable_crlb([10.0, 1.0, 1.0]))  # 1/10 + 1/2: the first UAV dominates
     0.6
     """
-    w = _v.positive(weights, "weights")
-    if w.ndim < 1 or w.shape[-1] < 2:
-        raise FieldError("weights", f"expected shape (..., M) with M >= 2, got {w.shape}")
-    total = np.sum(w, axis=-1)
-    largest = np.max(w, axis=-1)
-    rest = total - largest
+    w = _check_weights(weights, "(..., M)")
+    ordered = np.sort(w, axis=-1)
+    largest = ordered[..., -1]
+    rest = np.sum(ordered[..., :-1], axis=-1)  # (not total - largest: no cancellation)
+    total = np.sum(w, axis=-1)  # (as eq. (11) was always evaluated: the same bits)
     with np.errstate(divide="ignore"):  # (rest > 0: every weight is positive)
         dominant = 1.0 / largest + 1.0 / rest
     return np.where(largest <= rest, 4.0 / total, dominant)
+
+
+def _check_weights(weights: ArrayLike, shape: str) -> np.ndarray:
+    """Information weights: positive, within the range of a Fisher information (the
+    model's range, :data:`crlbswarm.fisher.MAX_FIM`), at least two on the last axis."""
+    w = _v.positive(weights, "weights")
+    if w.ndim < 1 or w.shape[-1] < 2:
+        raise FieldError("weights", f"expected shape {shape} with M >= 2, got {w.shape}")
+    if np.any(w > MAX_FIM) or np.any(w < MIN_FIM):
+        raise FieldError(
+            "weights", f"must be between {MIN_FIM:g} and {MAX_FIM:g} m^-2 (the model's range)"
+        )
+    return w
 
 
 def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.ndarray:
@@ -293,8 +305,8 @@ def isotropic_azimuths(weights: ArrayLike, rotation: float = 0.0) -> np.ndarray:
     """
     from scipy.optimize import brentq
 
-    w = _v.positive(weights, "weights")
-    if w.ndim != 1 or w.shape[0] < 2:
+    w = _check_weights(weights, "(M,)")
+    if w.ndim != 1:
         raise FieldError("weights", f"expected shape (M,) with M >= 2, got {w.shape}")
     rot = _v.angle(rotation, "rotation")
     order = np.argsort(-w, kind="stable")
