@@ -275,7 +275,10 @@ def crlb_bound(n_uavs: int, altitude: ArrayLike, radar: Radar = _DEFAULT_RADAR) 
     >>> round(float(crlb_bound(6, 20.0)) * 1e3, 4)
     5.3476
     """
-    return attainable_crlb(optimal_weights(n_uavs, altitude, radar))
+    weights = optimal_weights(n_uavs, altitude, radar)
+    if not radar.per_uav:  # equal UAVs: eq. (11), attained (no sorting over a large batch)
+        return 4.0 / np.sum(weights, axis=-1)
+    return attainable_crlb(weights)
 
 
 def isotropic_azimuths(weights: ArrayLike, rotation: float = 0.0) -> np.ndarray:
