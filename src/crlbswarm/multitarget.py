@@ -41,13 +41,24 @@ from .design import attainable_crlb, optimal_formation, optimal_weights
 from .errors import FieldError
 from .radar import Radar, check_radar
 
-__all__ = ["EXHAUSTIVE_LIMIT", "MIN_GROUP", "OBJECTIVES", "TargetAllocation", "allocate_targets"]
+__all__ = [
+    "EXHAUSTIVE_LIMIT",
+    "MAX_ALLOCATION_UAVS",
+    "MIN_GROUP",
+    "OBJECTIVES",
+    "TargetAllocation",
+    "allocate_targets",
+]
 
 #: Fewest UAVs serving one target (the design's smallest formation).
 MIN_GROUP = 3
 
 #: Largest number of assignments K^M evaluated exhaustively.
 EXHAUSTIVE_LIMIT = 3**12
+
+#: Most UAVs allocated (the local search scores every move and swap at each pass, about
+#: M^3 work: 100 UAVs to 20 targets take a few seconds).
+MAX_ALLOCATION_UAVS = 100
 
 #: The objectives over the targets' CRLBs.
 OBJECTIVES = ("sum", "max")
@@ -105,7 +116,7 @@ def allocate_targets(
     targets_xy : array_like, shape (K, 2)
         Target positions, m, K >= 1.
     n_uavs : int
-        Number of UAVs M, at least ``MIN_GROUP * K``.
+        Number of UAVs M, at least ``MIN_GROUP * K``, at most :data:`MAX_ALLOCATION_UAVS`.
     altitude : float
         Flight altitude H, m.
     radar : Radar, optional
@@ -137,7 +148,7 @@ def allocate_targets(
     if targets.ndim != 2 or targets.shape[0] < 1:
         raise FieldError("targets_xy", f"expected shape (K, 2), got {targets.shape}")
     k = targets.shape[0]
-    n = _v.uav_count(n_uavs, "n_uavs")
+    n = _v.count(n_uavs, "n_uavs", MIN_GROUP, MAX_ALLOCATION_UAVS)
     if n < MIN_GROUP * k:
         raise FieldError(
             "n_uavs", f"{n} UAVs cannot give {k} targets {MIN_GROUP} UAVs each ({MIN_GROUP * k})"
