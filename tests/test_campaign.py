@@ -621,7 +621,9 @@ def test_a_running_local_sweep_listens_on_loopback_only_and_locks_its_folder(tmp
     refused at once naming the first one's pid; the first one then completes. (The first
     one is paused meanwhile, so that it cannot finish before the second one starts.)"""
     spec_path = tmp_path / "spec.toml"
-    spec_path.write_text('base = "paper"\nbatch_size = 1\n[seeds]\ncount = 12\n')
+    # Many small tasks, and a quick poll: the first sweep is paused long before its last
+    # task (a fast machine once finished 12 tasks between two polls of 0.1 s).
+    spec_path.write_text('base = "paper"\nbatch_size = 1\n[seeds]\ncount = 60\n')
     out = tmp_path / "out"
     first = subprocess.Popen(sweep_command(spec_path, out, "--workers", "1"),
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -631,7 +633,7 @@ def test_a_running_local_sweep_listens_on_loopback_only_and_locks_its_folder(tmp
         while not finished_parts(out):
             assert first.poll() is None, first.communicate()
             assert time.monotonic() < deadline, "no task finished within 120 s"
-            time.sleep(0.1)
+            time.sleep(0.005)
         os.kill(first.pid, signal.SIGSTOP)  # paused (lock held) while the second one tries
         try:
             tree = process_tree(first.pid)
@@ -653,7 +655,7 @@ def test_a_running_local_sweep_listens_on_loopback_only_and_locks_its_folder(tmp
         f"(pid {first.pid})\n"
     )
     assert first.returncode == 0, err
-    assert len(load_runs(out)) == 12
+    assert len(load_runs(out)) == 60
 
 
 def make_certificates(folder: Path, name: str) -> dict[str, Path]:
