@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from crlbswarm import crlb_bound, optimal_elevation, optimal_formation
+from crlbswarm import Radar, crlb_bound, optimal_elevation, optimal_formation
 from crlbswarm.cli import main
 
 
@@ -57,9 +57,11 @@ def test_design_json_keys_and_values(capsys):
         "positions_m",
         "crlb_m2",
         "bound_m2",
+        "isotropic",
         "rmse_bound_m",
         "radar",
     }
+    assert data["isotropic"] is True
     np.testing.assert_allclose(
         data["positions_m"],
         optimal_formation(5, (1, -2), 50.0, rotation=np.radians(30)),
@@ -70,6 +72,25 @@ def test_design_json_keys_and_values(capsys):
     assert data["bound_m2"] == pytest.approx(float(crlb_bound(5, 50.0)), rel=1e-14)
     assert data["crlb_m2"] == pytest.approx(data["bound_m2"], rel=1e-12)
     assert data["rmse_bound_m"] == pytest.approx(np.sqrt(data["crlb_m2"]))
+
+
+def test_design_with_per_uav_radar_values(capsys):
+    """One value per UAV of a radar option gives unequal UAVs: their own elevations and
+    radii, and the attainable optimum (here one UAV dominates)."""
+    status, out, _ = run(capsys, "design", "--uavs", "3", "--tx-power", "10", "0.1", "0.1",
+                         "--json")  # fmt: skip
+    assert status == 0
+    data = json.loads(out)
+    radar = Radar(tx_power=[10.0, 0.1, 0.1])
+    assert data["isotropic"] is False
+    assert len(data["elevation_deg"]) == len(data["radius_m"]) == 3
+    assert data["bound_m2"] == pytest.approx(float(crlb_bound(3, 20.0, radar)), rel=1e-14)
+    assert data["crlb_m2"] == pytest.approx(data["bound_m2"], rel=1e-9)
+    status, out, _ = run(capsys, "design", "--uavs", "3", "--tx-power", "10", "0.1", "0.1")
+    assert "one UAV dominates" in out
+    status, _, err = run(capsys, "design", "--uavs", "4", "--tx-power", "0.1", "0.2")
+    assert status == 2
+    assert err.count("\n") == 1
 
 
 def test_design_radar_options_change_the_result(capsys):

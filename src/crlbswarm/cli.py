@@ -78,8 +78,9 @@ def _add_radar_options(parser: argparse.ArgumentParser, fields: dict[str, str]) 
             field=f"radar.{p.name}",
             dest=p.name,
             type=float,
+            nargs="+",
             metavar=(p.unit or "X").upper().replace("^", ""),
-            help=f"{p.label}, {unit} (default {p.default:g})",
+            help=f"{p.label}, {unit}; one value, or one per UAV (default {p.default:g})",
         )
         if p.db_unit:
             db_flags = [f"--{p.db_name.replace('_', '-')}"]
@@ -92,6 +93,7 @@ def _add_radar_options(parser: argparse.ArgumentParser, fields: dict[str, str]) 
                 field=f"radar.{p.db_name}",
                 dest=p.db_name,
                 type=float,
+                nargs="+",
                 metavar=p.db_unit.upper(),
                 help=f"{p.label}, {p.db_unit} (default {p.db_default:g})",
             )
@@ -102,8 +104,8 @@ def _radar_from_args(args: argparse.Namespace) -> Radar:
     for p in radar_parameters():
         for dest in (p.name, p.db_name):
             value = getattr(args, dest, None) if dest else None
-            if value is not None:
-                given[dest] = value
+            if value is not None:  # one value for every UAV, or one per UAV
+                given[dest] = value[0] if len(value) == 1 else value
     return Radar.from_db(**given)
 
 
@@ -392,21 +394,33 @@ def format_design(report: dict[str, Any]) -> str:
         The table, one line per quantity and per UAV.
     """
     x, y = report["target_m"]
+    per_uav = isinstance(report["elevation_deg"], list)
     lines = [
         "CRLB-optimal formation F* (paper Sec. III)",
         f"  UAVs M               {report['n_uavs']}",
         f"  altitude H           {report['altitude_m']:g} m",
         f"  target s             ({x:g}, {y:g}) m",
-        f"  optimal elevation    {report['elevation_deg']:.4f} deg",
-        f"  radius r*            {report['radius_m']:.4f} m",
+    ]
+    if not per_uav:
+        lines += [
+            f"  optimal elevation    {report['elevation_deg']:.4f} deg",
+            f"  radius r*            {report['radius_m']:.4f} m",
+        ]
+    bound = "eq. 11" if report["isotropic"] else "one UAV dominates: 1/w_max + 1/(W - w_max)"
+    lines += [
         f"  CRLB tr(J^-1)        {report['crlb_m2']:.6e} m^2"
         f"   (RMSE bound {100 * report['rmse_bound_m']:.3f} cm)",
-        f"  bound 4/sum(w)       {report['bound_m2']:.6e} m^2   (eq. 11)",
+        f"  attainable optimum   {report['bound_m2']:.6e} m^2   ({bound})",
         "  positions (m):",
-        "     UAV           x           y",
+        "     UAV           x           y"
+        + ("   elevation (deg)   radius (m)" if per_uav else ""),
     ]
     for i, (px, py) in enumerate(report["positions_m"], start=1):
-        lines.append(f"    {i:4d}  {px:10.4f}  {py:10.4f}")
+        row = f"    {i:4d}  {px:10.4f}  {py:10.4f}"
+        if per_uav:
+            elev, rad = report["elevation_deg"][i - 1], report["radius_m"][i - 1]
+            row += f"   {elev:15.4f}   {rad:10.4f}"
+        lines.append(row)
     return "\n".join(lines)
 
 

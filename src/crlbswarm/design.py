@@ -461,9 +461,11 @@ def design_report(
     -------
     dict
         Keys: ``n_uavs``, ``altitude_m``, ``target_m`` ([x, y]), ``rotation_deg``,
-        ``elevation_deg`` (phi*), ``radius_m`` (r*), ``positions_m`` (M x [x, y], UAV 1
-        first), ``crlb_m2`` (tr J^-1 of F*), ``bound_m2`` (4/sum w*), ``rmse_bound_m``
-        (sqrt of the CRLB), ``radar`` (the link parameters in linear SI units).
+        ``elevation_deg`` (phi*; a list, one per UAV, for a per-UAV radar), ``radius_m``
+        (r*; likewise), ``positions_m`` (M x [x, y], UAV 1 first), ``crlb_m2`` (tr J^-1 of
+        F*), ``bound_m2`` (the attainable optimum, :func:`crlb_bound`), ``isotropic``
+        (whether it is eq. (11), 4/sum w*, i.e. no UAV dominates), ``rmse_bound_m`` (sqrt
+        of the CRLB), ``radar`` (the link parameters in linear SI units).
     """
     n = _v.uav_count(n_uavs, "n_uavs")
     target = _v.location(target_xy, "target_xy")
@@ -474,16 +476,20 @@ def design_report(
     rotation_deg = _v.angle(rotation_deg, "rotation_deg", " deg")
     positions = optimal_formation(n, target, h, radar, np.radians(rotation_deg))
     value = float(crlb(positions, target, h, radar))
+    weights = optimal_weights(n, h, radar)
+    elevation = np.degrees(optimal_elevation(h, radar))
+    radius = optimal_radius(h, radar)
     return {
         "n_uavs": n,
         "altitude_m": h,
         "target_m": target.tolist(),
         "rotation_deg": float(rotation_deg),
-        "elevation_deg": float(np.degrees(optimal_elevation(h, radar))),
-        "radius_m": float(optimal_radius(h, radar)),
+        "elevation_deg": elevation.tolist() if radar.per_uav else float(elevation),
+        "radius_m": radius.tolist() if radar.per_uav else float(radius),
         "positions_m": positions.tolist(),
         "crlb_m2": value,
         "bound_m2": float(crlb_bound(n, h, radar)),
+        "isotropic": bool(np.max(weights) <= np.sum(weights) - np.max(weights)),
         "rmse_bound_m": float(np.sqrt(value)),
         "radar": radar.to_dict(),
     }
