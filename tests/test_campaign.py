@@ -140,13 +140,7 @@ def test_separate_scheduler_and_worker_processes_on_loopback(tmp_path):
         expected = direct(spec)
         assert_same(runs[expected.columns], expected)
     finally:
-        for proc in (worker, scheduler):
-            if proc is not None:
-                proc.terminate()
-                try:
-                    proc.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+        stop(worker, scheduler)
 
 
 #: kill -9 rounds of the test below; CRLBSWARM_LONG_TESTS=1 runs the long version.

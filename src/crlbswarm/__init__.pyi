@@ -30,6 +30,7 @@ from .control import (
 )
 from .design import (
     attainable_crlb as attainable_crlb,
+    best_eigenvalues as best_eigenvalues,
     crlb_bound as crlb_bound,
     design_report as design_report,
     information_weight as information_weight,

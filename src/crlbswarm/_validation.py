@@ -12,7 +12,7 @@ import numbers
 
 import numpy as np
 
-from .errors import FieldError
+from .errors import FieldError, one_line
 
 __all__: list[str] = []
 
@@ -59,10 +59,9 @@ def as_float_array(value: object, name: str) -> np.ndarray:
         raise FieldError(name, f"expected numbers, got {short(value)}") from exc
 
 
-def short(value: object) -> str:
-    """``repr(value)`` on one line and at most 60 characters (for error messages)."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= 60 else text[:57] + "..."
+def short(value: object, limit: int = 60) -> str:
+    """``repr(value)`` on one line and at most ``limit`` characters (for error messages)."""
+    return one_line(repr(value), limit)
 
 
 def check_finite(arr: np.ndarray, name: str) -> np.ndarray:

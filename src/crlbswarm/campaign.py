@@ -55,10 +55,10 @@ from . import __version__, _validation as _v
 from ._config import ConfigModel, read_toml, read_toml_file, validate
 from .errors import (
     CampaignError,
-    ConfigError,
     FieldError,
     ScenarioError,
     SimulationDivergedError,
+    one_line,
 )
 from .output import atomic_path, check_output_folder, write_text
 from .scenario import BUILTIN_SCENARIOS, Scenario, scenario_data
@@ -99,15 +99,15 @@ _QUOTE = 200
 LOCK_NAME = ".crlbswarm-sweep.lock"
 
 
+def _quote(value: Any) -> str:
+    """A value as quoted in a campaign's messages (a path or an address fits whole)."""
+    return _v.short(value, _QUOTE)
+
+
 class CampaignInputError(CampaignError, ValueError):
     """A campaign task failed because of its input (the variant's scenario or its seeds):
     an error the user can fix, one line naming the variant and the seeds. The command line
     exits with status 2 (1 for a :class:`~crlbswarm.errors.CampaignError` of the cluster)."""
-
-
-def _short(value: Any, limit: int = _QUOTE) -> str:
-    """``repr(value)`` on one line, cut to ``limit`` characters (never megabytes in a message)."""
-    return _one_line(repr(value), limit)
 
 
 def _is_file(path: str | Path) -> bool:
@@ -116,24 +116,6 @@ def _is_file(path: str | Path) -> bool:
         return Path(path).is_file()
     except (OSError, ValueError):
         return False
-
-
-def _one_line(text: str, limit: int = _QUOTE) -> str:
-    """``text`` with its whitespace runs (newlines too) made single spaces, cut to ``limit``."""
-    flat = " ".join(str(text).split())
-    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
-
-
-@contextlib.contextmanager
-def _short_reasons() -> Iterator[None]:
-    """Re-raise a file's error with its reason cut to a few hundred characters (a value of a
-    megabyte quoted back is no help)."""
-    try:
-        yield
-    except ConfigError as exc:
-        if len(exc.reason) <= 5 * _QUOTE:
-            raise
-        raise type(exc)(exc.source, exc.field, _one_line(exc.reason, 5 * _QUOTE)) from None
 
 
 #: Most worker processes of a local cluster (each is a Python process with its own copy of
@@ -172,11 +154,11 @@ class Distribution(ConfigModel):
         if value is not None:
             low, high = value
             if not (math.isfinite(low) and math.isfinite(high)):
-                raise ValueError(f"the bounds must be finite, got {_short(value)}")
+                raise ValueError(f"the bounds must be finite, got {_quote(value)}")
             if low > high:
-                raise ValueError(f"low must be at most high, got {_short(value)}")
+                raise ValueError(f"low must be at most high, got {_quote(value)}")
             if not math.isfinite(high - low):
-                raise ValueError(f"the span high - low overflows, got {_short(value)}")
+                raise ValueError(f"the span high - low overflows, got {_quote(value)}")
         return value
 
     @model_validator(mode="after")
@@ -261,7 +243,8 @@ class CampaignSpec(ConfigModel):
                 field, count = "random.samples", f"{n:,} variants"
             raise FieldError(
                 field,
-                f"{_one_line(count)}, more than the limit of {MAX_VARIANTS:,} (each variant's "
+                f"{one_line(count, _QUOTE)}, more than the limit of {MAX_VARIANTS:,} (each "
+                "variant's "
                 "scenario is validated before anything runs); split the campaign into "
                 "several specs",
             )
@@ -290,8 +273,7 @@ class CampaignSpec(ConfigModel):
         CampaignSpec
             The validated spec.
         """
-        with _short_reasons():
-            return validate(cls, read_toml(text, source), source)
+        return validate(cls, read_toml(text, source), source)
 
     @classmethod
     def from_file(cls, path: str | Path) -> tuple[CampaignSpec, str]:
@@ -337,14 +319,15 @@ class CampaignSpec(ConfigModel):
         if self.base not in BUILTIN_SCENARIOS and not _is_file(self.base):
             known = ", ".join(BUILTIN_SCENARIOS)
             if os.path.lexists(self.base):  # a folder, a device, a FIFO, a dangling link
-                raise FieldError("base", f"{_short(self.base)} is not a regular file")
+                raise FieldError("base", f"{_quote(self.base)} is not a regular file")
             raise FieldError(
-                "base", f"{_short(self.base)} is neither a built-in scenario ({known}) nor a file"
+                "base",
+                f"{_quote(self.base)} is neither a built-in scenario ({known}) nor a file",
             )
         try:
             return scenario_data(self.base)[1]
         except ScenarioError as exc:  # a file that cannot be read or parsed
-            raise FieldError("base", _one_line(str(exc), 5 * _QUOTE)) from None
+            raise FieldError("base", one_line(str(exc), 5 * _QUOTE)) from None
 
     def variants(self) -> list[dict[str, Any]]:
         """The changed fields of every variant, in a fixed order.
@@ -417,8 +400,7 @@ def plan_tasks(spec: CampaignSpec) -> tuple[list[dict[str, Any]], list[tuple[int
     largest = 0
     for i, changes in enumerate(spec.variants()):
         data = _apply(base, changes, "random.fields" if spec.random is not None else "grid")
-        with _short_reasons():
-            scenario = Scenario.from_dict(data, source=f"variant {i} ({_label(changes)})")
+        scenario = Scenario.from_dict(data, source=f"variant {i} ({_label(changes)})")
         need = _task_bytes(scenario, min(spec.batch_size, spec.seeds.count), spec.trajectories)
         if need > largest:  # the check reads /proc: only when a variant needs more
             largest = need
@@ -452,7 +434,7 @@ def _check_task_memory(need: int, spec: CampaignSpec, steps: int) -> None:
 
 def _label(changes: dict[str, Any]) -> str:
     text = ", ".join(f"{k}={v}" for k, v in changes.items()) or "base"
-    return _one_line(text)
+    return one_line(text, _QUOTE)
 
 
 def run_task(
@@ -670,7 +652,7 @@ def check_scheduler_address(address: str) -> str:
         inside the process that created it), or a missing or invalid host or port.
     """
     if not isinstance(address, str):
-        raise FieldError("scheduler", f"expected an address string, got {_short(address)}")
+        raise FieldError("scheduler", f"expected an address string, got {_quote(address)}")
     usage = "give tcp://host:port or tls://host:port, or no address to start a local cluster"
     if not address.strip():
         raise FieldError("scheduler", f"empty address; {usage}")
@@ -679,11 +661,11 @@ def check_scheduler_address(address: str) -> str:
     if scheme == "inproc":
         raise FieldError(
             "scheduler",
-            f"{_short(address)}: an inproc:// address only works inside the process that "
+            f"{_quote(address)}: an inproc:// address only works inside the process that "
             f"created it; {usage}",
         )
     if scheme not in ("tcp", "tls"):
-        raise FieldError("scheduler", f"{_short(address)}: unsupported scheme {_short(scheme)}; "
+        raise FieldError("scheduler", f"{_quote(address)}: unsupported scheme {_quote(scheme)}; "
                          f"{usage}")  # fmt: skip
     try:
         parts = urlsplit(f"//{rest}")
@@ -699,10 +681,10 @@ def check_scheduler_address(address: str) -> str:
         or parts.query
         or parts.fragment
     ):
-        raise FieldError("scheduler", f"{_short(address)} is not host:port with a port in "
+        raise FieldError("scheduler", f"{_quote(address)} is not host:port with a port in "
                          f"1..65535; {usage}")  # fmt: skip
     if len(host) > 253:  # (not host: checked above)
-        raise FieldError("scheduler", f"{_short(address)}: the host name is longer than 253 "
+        raise FieldError("scheduler", f"{_quote(address)}: the host name is longer than 253 "
                          "characters")  # fmt: skip
     return f"{scheme}://{rest}"
 
@@ -716,13 +698,13 @@ def _security(
     named = {name: str(path) for name, path in given.items() if path is not None}
     if address is None or not address.startswith("tls://"):
         if named:
-            where = "the local cluster" if address is None else _short(address)
+            where = "the local cluster" if address is None else _quote(address)
             raise FieldError(next(iter(named)), f"TLS files need a tls://host:port scheduler "
                              f"(not {where})")  # fmt: skip
         return None
     for name, path in named.items():
         if not (_is_file(path) and os.access(path, os.R_OK)):
-            raise FieldError(name, f"{_short(path)} is not a readable regular file")
+            raise FieldError(name, f"{_quote(path)} is not a readable regular file")
     from distributed.security import Security
 
     renamed = {"tls_ca_file": "tls_ca_file", "tls_cert": "tls_client_cert",
@@ -785,7 +767,7 @@ def _dask_client(
                 raise CampaignError(f"the local cluster: {_error_text(exc)}") from None
             raise FieldError(
                 "scheduler",
-                f"cannot connect to {_short(address)} (a Dask scheduler, of the same "
+                f"cannot connect to {_quote(address)} (a Dask scheduler, of the same "
                 f"scheme?): {_error_text(exc)}",
             ) from None
         yield stack.enter_context(client)
@@ -799,13 +781,13 @@ def _probe(address: str, timeout: float) -> None:
         socket.create_connection((parts.hostname, parts.port or 0), timeout=timeout).close()
     except (OSError, UnicodeError) as exc:  # UnicodeError: a host name idna cannot encode
         reason = getattr(exc, "strerror", None) or _error_text(exc)
-        raise FieldError("scheduler", f"cannot connect to {_short(address)}: {reason}") from None
+        raise FieldError("scheduler", f"cannot connect to {_quote(address)}: {reason}") from None
 
 
 def _error_text(exc: BaseException) -> str:
     """An exception as one short line: its type and its message's first few hundred
     characters (a worker's error never brings its traceback or a megabyte value)."""
-    text = _one_line(str(exc))
+    text = one_line(str(exc), _QUOTE)
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
@@ -821,10 +803,11 @@ def _in_use(folder: Path, fd: int) -> FieldError | None:
     except BlockingIOError:
         pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
         return FieldError(
-            "out", f"{_short(str(folder))} is in use by another crlbswarm sweep (pid {pid})"
+            "out",
+            f"{_quote(str(folder))} is in use by another crlbswarm sweep (pid {pid})",
         )
     except OSError as exc:
-        return FieldError("out", f"cannot lock {_short(str(folder))}: {exc.strerror}")
+        return FieldError("out", f"cannot lock {_quote(str(folder))}: {exc.strerror}")
     return None
 
 
@@ -852,7 +835,7 @@ def _locked(folder: Path) -> Iterator[None]:
     fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NONBLOCK, 0o644)
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise FieldError("out", f"{LOCK_NAME} in {_short(str(folder))} is not a regular file")
+            raise FieldError("out", f"{LOCK_NAME} in {_quote(str(folder))} is not a regular file")
         error = _in_use(folder, fd)
         if error is not None:
             raise error
@@ -874,7 +857,7 @@ def _variants_table(variants: list[dict[str, Any]]) -> Any:
         return pa.table(rows)
     except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
         raise FieldError(
-            "grid", f"the values of a field must share one type ({_one_line(str(exc))})"
+            "grid", f"the values of a field must share one type ({one_line(str(exc), _QUOTE)})"
         ) from None
 
 
@@ -893,7 +876,7 @@ def _check_same_campaign(folder: Path, canonical: str) -> None:
         if folder.is_dir() and any(not e.name.startswith(".") for e in folder.iterdir()):
             raise FieldError(
                 "out",
-                f"{_short(str(folder))} holds files but no campaign (no spec.json); use a new "
+                f"{_quote(str(folder))} holds files but no campaign (no spec.json); use a new "
                 "or empty folder",
             )
         return
@@ -908,7 +891,7 @@ def _check_same_campaign(folder: Path, canonical: str) -> None:
     if not same:
         raise FieldError(
             "out",
-            f"{_short(str(folder))} holds the results of a different campaign (its spec.json "
+            f"{_quote(str(folder))} holds the results of a different campaign (its spec.json "
             "differs); use another folder",
         )
 
@@ -939,7 +922,7 @@ def _task_failure(
     run, raised by the simulator) or the cluster (a worker lost, anything else)."""
     if isinstance(exc, ValueError | SimulationDivergedError):
         return CampaignInputError(f"variant {v} ({_label(changes)}), seeds {a}..{b}: "
-                                  f"{_one_line(str(exc), 2 * _QUOTE)}")  # fmt: skip
+                                  f"{one_line(str(exc), 2 * _QUOTE)}")  # fmt: skip
     return CampaignError(f"variant {v}, seeds {a}..{b}: {_error_text(exc)}")
 
 

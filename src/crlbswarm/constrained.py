@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
-from .design import optimal_formation, optimal_radius, optimal_weights
+from .design import best_eigenvalues, optimal_formation, optimal_radius, optimal_weights
 from .errors import FieldError
 from .fisher import crlb, d_optimality, e_optimality
 from .obstacles import Obstacles, check_obstacles
@@ -115,9 +115,6 @@ class ConstrainedDesign:
         The criterion of ``positions``: m^2 for A and E, m^4 for D.
     unconstrained : float
         The criterion's unconstrained optimum (:func:`optimal_value`), same unit.
-    ratio : float
-        ``value / unconstrained`` >= 1: what the constraints cost (for D a ratio of
-        squared areas; its square root compares with A and E).
     starts : int
         Number of starts run.
     feasible_starts : int
@@ -134,11 +131,16 @@ class ConstrainedDesign:
     criterion: str
     value: float
     unconstrained: float
-    ratio: float
     starts: int
     feasible_starts: int
     active: tuple[str, ...]
     unconstrained_positions: np.ndarray
+
+    @property
+    def ratio(self) -> float:
+        """``value / unconstrained`` >= 1: what the constraints cost (for D a ratio of
+        squared areas; its square root compares with A and E)."""
+        return self.value / self.unconstrained
 
 
 def _check_criterion(criterion: object) -> str:
@@ -214,14 +216,12 @@ def optimal_value(
     True
     """
     name = _check_criterion(criterion)
-    w = optimal_weights(n_uavs, altitude, radar)
-    total = np.sum(w, axis=-1)
-    z = np.maximum(0.0, 2.0 * np.max(w, axis=-1) - total)
+    lam_max, lam_min = best_eigenvalues(optimal_weights(n_uavs, altitude, radar))
     if name == "A":
-        return 4.0 * total / ((total - z) * (total + z))
+        return 1.0 / lam_max + 1.0 / lam_min
     if name == "D":
-        return 4.0 / ((total - z) * (total + z))
-    return 2.0 / (total - z)
+        return 1.0 / (lam_max * lam_min)
+    return 1.0 / lam_min
 
 
 # -- the feasible set ------------------------------------------------------------------------
@@ -826,7 +826,6 @@ def _design(prob: _Problem, radar: Radar, q: np.ndarray, value: float, starts: i
         criterion=prob.criterion,
         value=value,
         unconstrained=best,
-        ratio=value / best,
         starts=starts,
         feasible_starts=int(feasible),
         active=active,

@@ -41,6 +41,7 @@ from .radar import Radar, check_radar
 
 __all__ = [
     "attainable_crlb",
+    "best_eigenvalues",
     "crlb_bound",
     "design_report",
     "information_weight",
@@ -222,14 +223,35 @@ def attainable_crlb(weights: ArrayLike) -> np.ndarray:
     >>> float(attainable_crlb([10.0, 1.0, 1.0]))  # 1/10 + 1/2: the first UAV dominates
     0.6
     """
+    lam_max, lam_min = best_eigenvalues(weights)
+    return 1.0 / lam_max + 1.0 / lam_min  # (4/W when both are W/2: the same bits)
+
+
+def best_eigenvalues(weights: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    r"""The eigenvalues of :math:`\mathbf J_s` at the best azimuths for given weights
+    (:func:`attainable_crlb`): both :math:`W/2` when no weight exceeds the sum of the
+    others, else :math:`w_{\max}` and :math:`W - w_{\max}` (:math:`(W \pm |z|)/2` with the
+    smallest :math:`|z|`). Every design criterion of the best geometry follows from them:
+    A :math:`= 1/\lambda_{\max} + 1/\lambda_{\min}`, D :math:`= 1/(\lambda_{\max}
+    \lambda_{\min})`, E :math:`= 1/\lambda_{\min}`.
+
+    Parameters
+    ----------
+    weights : array_like, shape (..., M)
+        Information weights :math:`w_m > 0`, m^-2, M >= 2.
+
+    Returns
+    -------
+    lam_max, lam_min : ndarray, shape (...)
+        The two eigenvalues, m^-2.
+    """
     w = _check_weights(weights, "(..., M)")
     ordered = np.sort(w, axis=-1)
     largest = ordered[..., -1]
     rest = np.sum(ordered[..., :-1], axis=-1)  # (not total - largest: no cancellation)
-    total = np.sum(w, axis=-1)  # (as eq. (11) was always evaluated: the same bits)
-    with np.errstate(divide="ignore"):  # (rest > 0: every weight is positive)
-        dominant = 1.0 / largest + 1.0 / rest
-    return np.where(largest <= rest, 4.0 / total, dominant)
+    half = 0.5 * np.sum(w, axis=-1)  # (as eq. (11) was always evaluated: the same bits)
+    isotropic = largest <= rest
+    return np.where(isotropic, half, largest), np.where(isotropic, half, rest)
 
 
 def _check_weights(weights: ArrayLike, shape: str) -> np.ndarray:

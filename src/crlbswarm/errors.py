@@ -24,7 +24,8 @@ MAX_REASON = 400
 
 
 def one_line(text: str, limit: int = MAX_REASON) -> str:
-    """``text`` on one line (line breaks become spaces), cut to ``limit`` characters.
+    """``text`` on one line (each run of whitespace, line breaks too, becomes one space),
+    cut to ``limit`` characters: the one place where crlbswarm shortens what it quotes.
 
     Parameters
     ----------
@@ -36,12 +37,16 @@ def one_line(text: str, limit: int = MAX_REASON) -> str:
     Returns
     -------
     str
-        The text, with ``"... (N characters)"`` at the end if it was cut.
+        The text, with ``"... (N characters)"`` (or ``"..."`` when ``limit`` is short) at
+        the end if it was cut.
     """
-    flat = " ".join(text.splitlines())
+    flat = " ".join(str(text).split())
     if len(flat) <= limit:
         return flat
-    return f"{flat[: limit - 30]}... ({len(flat)} characters)"
+    suffix = f"... ({len(flat)} characters)"
+    if len(suffix) > limit // 2:
+        suffix = "..."
+    return flat[: limit - len(suffix)] + suffix
 
 
 class FieldError(ValueError):

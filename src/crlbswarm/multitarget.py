@@ -82,8 +82,6 @@ class TargetAllocation:
         Attainable CRLB of each target, m^2.
     objective : str
         ``"sum"`` or ``"max"``.
-    value : float
-        The objective: sum or maximum of ``crlb``, m^2.
     exhaustive : bool
         Whether every assignment was evaluated (the optimum), or the heuristic was used.
     evaluated : int
@@ -95,9 +93,13 @@ class TargetAllocation:
     positions: np.ndarray
     crlb: np.ndarray
     objective: str
-    value: float
     exhaustive: bool
     evaluated: int
+
+    @property
+    def value(self) -> float:
+        """The objective: the sum or the largest of ``crlb``, m^2."""
+        return float(_objective(self.crlb, self.objective))
 
 
 def allocate_targets(
@@ -261,7 +263,6 @@ def _allocation(assignment: np.ndarray, targets: np.ndarray, altitude: float, ra
         positions=positions,
         crlb=costs,
         objective=objective,
-        value=float(_objective(costs, objective)),
         exhaustive=exhaustive,
         evaluated=evaluated,
     )
