@@ -535,3 +535,29 @@ def test_slot_arguments_are_checked(args, field):
     with pytest.raises(FieldError) as err:
         assign_slots(*args)
     assert err.value.field == field
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_assign_slots_keeps_each_uav_to_its_kind(seed):
+    """With kinds, a UAV takes only a slot of its own kind (unequal UAVs), the leader keeps
+    its own, and within a kind the travel is the least (checked by brute force)."""
+    import itertools
+
+    from crlbswarm.planning import assign_slots
+
+    rng = np.random.default_rng(seed)
+    start, slots = rng.uniform(-50, 50, (2, 7, 2))
+    kinds = np.array([1.0, 2.0, 1.0, 2.0, 2.0, 1.0, 3.0])
+    slot = assign_slots(start, slots, 0, kinds)
+    assert sorted(slot) == list(range(7))
+    assert slot[0] == 0
+    assert np.array_equal(kinds[slot], kinds)
+    for kind in (1.0, 2.0):
+        uavs = [m for m in range(1, 7) if kinds[m] == kind]
+        best = min(
+            sum(np.hypot(*(start[m] - slots[p])) for m, p in zip(uavs, perm, strict=True))
+            for perm in itertools.permutations(uavs)
+        )
+        got = sum(np.hypot(*(start[m] - slots[slot[m]])) for m in uavs)
+        assert got == pytest.approx(best, rel=1e-12)
+    assert slot[6] == 6  # alone in its kind

@@ -188,7 +188,12 @@ def test_converged_needs_the_hold_and_a_short_mission_is_a_timeout():
     ("changes", "field", "words"),
     [
         ({"safety": {"min_separation": -1.0}}, "safety.min_separation", "greater than 0"),
-        ({"safety": {"min_separation": 20.0}}, "safety.min_separation", "side of F*"),
+        (
+            {"safety": {"min_separation": 8.0}, "formation": {"design": "closed_form"}},
+            "safety.min_separation",
+            "side of F*",
+        ),
+        ({"safety": {"min_separation": 20.0}}, "uavs.start_region", "small"),
         ({"safety": {"max_speed": 1.0}}, "safety.max_speed", "cruise_speed"),
         ({"safety": {"sensing_radius": 1.2}}, "safety.sensing_radius", "at least"),
         ({"safety": {"decay": 0.0}}, "safety.decay", "greater than 0"),
@@ -363,11 +368,20 @@ def test_explicit_starts_inside_the_margin_are_refused():
 
 
 def test_a_formation_too_tight_to_pass_between_neighbours_is_refused():
-    """16 UAVs at 5 m: F*'s side is 1.38 m, less than twice 1 m plus its margin."""
+    """16 UAVs at 5 m: F*'s side is 1.38 m, less than twice 1 m plus its margin: refused
+    with the closed form only, else the constrained design spreads the slots."""
+    data = {**paper_data(uavs={"count": 16}, formation={"design": "closed_form"}), "altitude": 5.0}
     with pytest.raises(ScenarioError) as info:
-        Scenario.from_dict({**paper_data(uavs={"count": 16}), "altitude": 5.0})
+        Scenario.from_dict(data)
     assert info.value.field == "safety.min_separation"
     assert "could not pass between two neighbours" in str(info.value)
+    data["formation"] = {**data["formation"], "design": "auto"}
+    sc = Scenario.from_dict(data)
+    design = sc.formation_design
+    assert design.method == "constrained"
+    assert "apart" in design.blocked
+    assert sc.formation_side >= 2.0 * sc.start_separation * (1 - 1e-9)
+    assert design.ratio > 1.0
 
 
 def test_with_eta_off_the_route_is_planned_for_the_whole_formation():

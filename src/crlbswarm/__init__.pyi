@@ -118,6 +118,7 @@ from .radar import (
     dbm_to_watts as dbm_to_watts,
 )
 from .results import (
+    GroupMissionResult as GroupMissionResult,
     MissionResult as MissionResult,
     load_results as load_results,
 )
@@ -135,6 +136,7 @@ from .scenario_checks import (
 )
 from .simulation import (
     simulate as simulate,
+    simulate_groups as simulate_groups,
     start_positions as start_positions,
 )
 from .spatial import (

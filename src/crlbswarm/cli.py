@@ -493,8 +493,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .results import outcome_report
-    from .simulation import simulate
+    from .simulation import simulate, simulate_groups
 
+    if scenario.extra_targets:  # several targets: one result per group
+        grouped = simulate_groups(scenario, seeds=range(first, first + runs),
+                                  keep_trajectories=keep)  # fmt: skip
+        for path in grouped.save(args.out, overwrite=args.force):
+            print(f"wrote {path}")
+        warned = False
+        for g, group in enumerate(grouped.groups):
+            print(f"group {g}: UAVs {grouped.plan.members[g].tolist()} -> target "
+                  f"{list(group.scenario.target)}")  # fmt: skip
+            lines = outcome_report(group)
+            if lines[-1].startswith("warning:"):
+                lines.pop()
+                warned = True
+            print("\n".join("  " + line for line in lines))
+        if warned:
+            print("crlbswarm: warning: some runs of some groups did not end converged; see "
+                  "metrics.csv", file=sys.stderr)  # fmt: skip
+            return 1 if args.strict else 0
+        return 0
     with tqdm(total=runs, unit="run", disable=None, file=sys.stderr) as bar:
         result = simulate(
             scenario,

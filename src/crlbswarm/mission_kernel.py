@@ -60,6 +60,8 @@ __all__ = [
     "DIVERGENCE_LIMIT",
     "FILTER_ITERATIONS",
     "REPLAN_PERIOD",
+    "GroupArrays",
+    "GroupOutputs",
     "MissionConstants",
     "RunInputs",
     "RunOutputs",
@@ -67,8 +69,11 @@ __all__ = [
     "carrot_point",
     "control_step",
     "leader_goal",
+    "move_uavs",
     "passed_nodes",
     "run_batch",
+    "run_group_batch",
+    "run_groups",
     "run_mission",
     "sense_target",
     "steering_footprint",
@@ -136,6 +141,11 @@ class MissionConstants(NamedTuple):
     steer_radius : float
         :math:`l_\text{safe}` of the leader's steering (the repulsion felt by the
         formation's disc), m: ``Scenario.steering_radius``.
+    centre_x : float
+        Offset of the formation's centre (the mean of its slots) from the target, x, m:
+        0 for a regular polygon; the slot offsets ``RunInputs.delta`` are taken from it.
+    centre_y : float
+        The same, y, m.
     """
 
     dt: float
@@ -159,6 +169,8 @@ class MissionConstants(NamedTuple):
     carrot: float
     replan_every: int
     steer_radius: float
+    centre_x: float
+    centre_y: float
 
 
 class SceneArrays(NamedTuple):
@@ -216,8 +228,8 @@ class RunInputs(NamedTuple):
     x0 : ndarray, shape (n,)
         Prior mean of the filter.
     delta : ndarray, shape (M, 2)
-        Each UAV's slot offset in :math:`F^*` from the target (after the slot assignment),
-        m.
+        Each UAV's slot offset in :math:`F^*` from the formation's centre (the target for
+        a regular polygon; ``MissionConstants.centre_x``), after the slot assignment, m.
     """
 
     noise: np.ndarray
@@ -281,14 +293,12 @@ def sense_target(q, s_true, z, x, p_cov, ranges, const):
 
 
 @njit(cache=True)
-def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, node, out, inp,
-                 scene, ctl, rule, const, a_work, b_work):  # fmt: skip
-    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3) (through the safety
-    filter when it is on), the cost (15), the consensus (14) and the next eta. Returns False
-    if a position ran away."""
+def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work):
+    """Step 2's motion, for every UAV of every group: the obstacle repulsion (eq. (18)) added
+    to the formation input in ``u`` (eq. (19)), through the safety filter when it is on
+    (across all UAVs), then the motion model of eq. (3) from ``q`` (step k) to ``q_next``.
+    Returns False if a position ran away."""
     dt = const.dt
-    delta = inp.delta
-    formation_update(q, delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
     noise = inp.noise[k]
     for m in range(q.shape[0]):
         rx, ry = repulsion_at(
@@ -314,7 +324,20 @@ def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, 
         if not (abs(q_next[m, 0]) <= DIVERGENCE_LIMIT
                 and abs(q_next[m, 1]) <= DIVERGENCE_LIMIT):  # fmt: skip
             return False
-    out.cost[k] = control_cost(q, q_next, delta, vref, dt, scene.indptr, scene.indices)
+    return True
+
+
+@njit(cache=True)
+def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, node, out, inp,
+                 scene, ctl, rule, const, a_work, b_work):  # fmt: skip
+    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3) (through the safety
+    filter when it is on, :func:`move_uavs`), the cost (15), the consensus (14) and the next
+    eta. Returns False if a position ran away."""
+    delta = inp.delta
+    formation_update(q, delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
+    if not move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work):
+        return False
+    out.cost[k] = control_cost(q, q_next, delta, vref, const.dt, scene.indptr, scene.indices)
     consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
     if rule.enabled:  # along the route (the straight line to the target off the planner)
         goal = route_eta_goal(
@@ -322,20 +345,21 @@ def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, 
             scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum,
             const.planner,
         )  # fmt: skip
-        out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * dt)
+        out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * const.dt)
     else:
         out.eta[k + 1] = 1.0
     return True
 
 
 @njit(cache=True, inline="always")
-def steering_footprint(eta, cx, cy, sx, sy, ctl, const):
-    """Radius of the formation's disc that the leader steers off obstacles: eta r* while
-    travelling, fading to 0 over the target (:func:`crlbswarm.control.travel_weight`), so a
-    formation whose slots are clear hovers exactly over the target; 0 without steering."""
+def steering_footprint(eta, cx, cy, sx, sy, ctl, radius):
+    """Radius of the formation's disc that the leader steers off obstacles: eta r* (``radius``
+    r*) while travelling, fading to 0 over the target (:func:`crlbswarm.control.travel_weight`),
+    so a formation whose slots are clear hovers exactly over the target; 0 without
+    steering."""
     if not ctl.formation_steering:
         return 0.0
-    return eta * const.radius * travel_weight(math.hypot(cx - sx, cy - sy), const.radius)
+    return eta * radius * travel_weight(math.hypot(cx - sx, cy - sy), radius)
 
 
 @njit(cache=True)
@@ -444,6 +468,9 @@ def run_mission(out, inp, scene, ctl, rule, const):
         else:
             sx, sy = inp.target[k, 0], inp.target[k, 1]
             tvx, tvy = inp.target_velocity[k, 0], inp.target_velocity[k, 1]
+        # The formation's centre over the goal (the target itself for a regular polygon).
+        sx += const.centre_x
+        sy += const.centre_y
         cx = 0.0
         cy = 0.0
         for m in range(m_uavs):
@@ -465,7 +492,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
             q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],
             gy + eta * inp.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
             fvx, fvy, scene.rects, scene.circles, ctl.repulsion_gain, const.steer_radius,
-            steering_footprint(eta, cx, cy, sx, sy, ctl, const), const.dt,
+            steering_footprint(eta, cx, cy, sx, sy, ctl, const.radius), const.dt,
         )  # fmt: skip
         out.v_ref[k, 0] = vref[0]
         out.v_ref[k, 1] = vref[1]
@@ -499,3 +526,174 @@ def run_batch(outs, inps, status, scene, ctl, rule, const):
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
         status[b] = run_mission(out, inp, scene, ctl, rule, const)
+
+
+# ---------------------------------------------------------------------------------------
+# Several targets: one formation per group, one motion step for all (issue 11, item 4)
+# ---------------------------------------------------------------------------------------
+class GroupArrays(NamedTuple):
+    """The groups of a mission with several targets (:mod:`crlbswarm.groups`): the UAVs
+    are ordered so that group g is ``bounds[g] .. bounds[g+1] - 1``.
+
+    Parameters
+    ----------
+    bounds : ndarray of int64, shape (G+1,)
+        First UAV of each group, and M.
+    leaders : ndarray of int64, shape (G,)
+        Each group's leader, an index within the group.
+    goals : ndarray, shape (G, 2)
+        Each group's formation centre over its (static) target, m.
+    radius : ndarray, shape (G,)
+        Each group's formation radius about its centre, m.
+    indptr : ndarray of int64
+        The groups' CSR row pointers, each group's with local values from 0, concatenated.
+    indices : ndarray of int64
+        Their neighbour indices (local to each group), concatenated.
+    ptr_off : ndarray of int64, shape (G+1,)
+        Where each group's row pointers start in ``indptr``.
+    idx_off : ndarray of int64, shape (G+1,)
+        Where each group's neighbours start in ``indices``.
+    """
+
+    bounds: np.ndarray
+    leaders: np.ndarray
+    goals: np.ndarray
+    radius: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    ptr_off: np.ndarray
+    idx_off: np.ndarray
+
+
+class GroupOutputs(NamedTuple):
+    """The arrays one run with several groups writes (``q[0]`` and ``eta[0]`` hold the start
+    on entry; ``v[0]`` zero).
+
+    Parameters
+    ----------
+    q : ndarray, shape (K+1, M, 2)
+        Positions, m (the UAVs in group order).
+    v : ndarray, shape (K+1, M, 2)
+        Consensus velocities, m/s.
+    v_ref : ndarray, shape (K+1, G, 2)
+        Each leader's reference velocity, m/s.
+    eta : ndarray, shape (K+1, G)
+        Each group's scaling factor.
+    clearance : ndarray, shape (K+1, G)
+        Each group's smallest obstacle clearance, m.
+    separation : ndarray, shape (K+1,)
+        Smallest distance between two UAVs of the swarm (all groups), m.
+    cost : ndarray, shape (K, G)
+        Each group's cost of eq. (15).
+    distance_to_go : ndarray, shape (K+1, G)
+        Distance from each group's centroid to its centre over the target, m.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    v_ref: np.ndarray
+    eta: np.ndarray
+    clearance: np.ndarray
+    separation: np.ndarray
+    cost: np.ndarray
+    distance_to_go: np.ndarray
+
+
+@njit(cache=True)
+def run_groups(out, inp, scene, ctl, rule, const, grp):
+    """One run of a swarm split into groups, each flying its own formation to its own static
+    target with its own leader, as :func:`run_mission` flies one (the same laws, called per
+    group on the group's UAVs and graph, without the planner and the filter), while the
+    repulsion, the safety filter and the motion act on all UAVs at once (:func:`move_uavs`),
+    so the safety filter keeps UAVs of different groups apart too. Returns -1, or the step
+    at which a position ran away."""
+    k_steps = inp.noise.shape[0]
+    m_uavs = out.q.shape[1]
+    n_groups = grp.leaders.shape[0]
+    u = np.empty((m_uavs, 2))
+    d_work = np.empty((m_uavs, 2))
+    n_rows = m_uavs - 1 + scene.rects.shape[0] + scene.circles.shape[0]
+    a_work = np.empty((max(n_rows, 1), 2))
+    b_work = np.empty(max(n_rows, 1))
+    vref = np.empty((n_groups, 2))
+    centre = np.empty((n_groups, 2))
+    delta = inp.delta
+    for k in range(k_steps + 1):
+        q = out.q[k]
+        for g in range(n_groups):  # Step 1 per group: the leader's reference velocity.
+            lo, hi = grp.bounds[g], grp.bounds[g + 1]
+            cx = 0.0
+            cy = 0.0
+            for m in range(lo, hi):
+                cx += q[m, 0]
+                cy += q[m, 1]
+            cx /= hi - lo
+            cy /= hi - lo
+            centre[g, 0] = cx
+            centre[g, 1] = cy
+            sx, sy = grp.goals[g, 0], grp.goals[g, 1]
+            eta = out.eta[k, g]
+            ld = lo + grp.leaders[g]
+            out.distance_to_go[k, g] = math.hypot(cx - sx, cy - sy)
+            vref[g, 0], vref[g, 1] = reference_velocity(
+                q[ld, 0], q[ld, 1], sx + eta * delta[ld, 0], sy + eta * delta[ld, 1], cx, cy,
+                ctl.guidance_gain, ctl.cruise_speed, 0.0, 0.0, scene.rects, scene.circles,
+                ctl.repulsion_gain, const.steer_radius,
+                steering_footprint(eta, cx, cy, sx, sy, ctl, grp.radius[g]), const.dt,
+            )  # fmt: skip
+            out.v_ref[k, g, 0] = vref[g, 0]
+            out.v_ref[k, g, 1] = vref[g, 1]
+            out.v[k, ld, 0] = vref[g, 0]
+            out.v[k, ld, 1] = vref[g, 1]
+            clearance = math.inf
+            for m in range(lo, hi):
+                clearance = min(
+                    clearance, clearance_at(q[m, 0], q[m, 1], scene.rects, scene.circles)
+                )
+            out.clearance[k, g] = clearance
+        out.separation[k] = min_separation(q)
+        if k == k_steps:
+            break
+        for g in range(n_groups):  # eq. (19) per group, on its own graph
+            lo, hi = grp.bounds[g], grp.bounds[g + 1]
+            ip = grp.indptr[grp.ptr_off[g] : grp.ptr_off[g + 1]]
+            ix = grp.indices[grp.idx_off[g] : grp.idx_off[g + 1]]
+            formation_update(q[lo:hi], delta[lo:hi], out.eta[k, g], ctl.epsilon, ip, ix,
+                             u[lo:hi])  # fmt: skip
+        q_next = out.q[k + 1]
+        if not move_uavs(k, q, q_next, out.v[k], u, d_work, inp, scene, ctl, const, a_work,
+                         b_work):  # fmt: skip
+            return k + 1
+        for g in range(n_groups):  # eqs. (15) and (14) and the next eta, per group
+            lo, hi = grp.bounds[g], grp.bounds[g + 1]
+            ip = grp.indptr[grp.ptr_off[g] : grp.ptr_off[g + 1]]
+            ix = grp.indices[grp.idx_off[g] : grp.idx_off[g + 1]]
+            out.cost[k, g] = control_cost(q[lo:hi], q_next[lo:hi], delta[lo:hi], vref[g],
+                                          const.dt, ip, ix)  # fmt: skip
+            consensus_update(out.v[k][lo:hi], vref[g], grp.leaders[g], ip, ix, ctl.gamma,
+                             out.v[k + 1][lo:hi])  # fmt: skip
+            eta = out.eta[k, g]
+            if rule.enabled:
+                goal = route_eta_goal(
+                    centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], -1,
+                    scene.nodes, scene.next_node, grp.radius[g], scene.rects, scene.circles,
+                    rule.margin, rule.lookahead, rule.samples, rule.minimum, False,
+                )  # fmt: skip
+                out.eta[k + 1, g] = eta_rate_limit(eta, goal, rule.rate * const.dt)
+            else:
+                out.eta[k + 1, g] = 1.0
+    return -1
+
+
+@njit(cache=True, parallel=True)
+def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp):
+    """:func:`run_groups` for every run of a batch in parallel threads (``outs``/``inps``:
+    tuples of arrays with a leading run axis, in the field order of
+    :class:`GroupOutputs`/:class:`RunInputs`)."""
+    for b in prange(status.shape[0]):
+        out = GroupOutputs(
+            outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
+            outs[6][b], outs[7][b],
+        )  # fmt: skip
+        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
+        status[b] = run_groups(out, inp, scene, ctl, rule, const, grp)

@@ -194,6 +194,8 @@ def _move_files(stage: Path, dest: Path, marker: str) -> None:
         names.append(marker)
         (dest / marker).unlink(missing_ok=True)
     for name in names:
+        if (stage / name).is_dir() and (dest / name).is_dir() and not (dest / name).is_symlink():
+            shutil.rmtree(dest / name)  # a folder of the set (the user asked to replace it)
         os.replace(stage / name, dest / name)
     stage.rmdir()
 

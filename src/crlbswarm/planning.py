@@ -74,6 +74,7 @@ __all__ = [
     "DEFAULT_HINT",
     "DISC_VERTICES",
     "MAX_ROADMAP_OBSTACLES",
+    "MAX_SCENARIO_STARTS",
     "NODE_MARGIN",
     "FormationConfig",
     "GuidanceConfig",
@@ -100,6 +101,10 @@ NODE_MARGIN = 1e-6
 CLEAR_TOL = 1e-9
 #: Bisection steps on the inflation when :func:`plan_route` looks for the closing passage.
 BISECTION_STEPS = 12
+
+#: Most starts of a scenario's constrained design (``formation.starts``): each costs about
+#: :math:`M^3` and the design is made when the scenario is validated.
+MAX_SCENARIO_STARTS = 1000
 
 #: Advice that ends the message of :func:`plan_route` by default.
 DEFAULT_HINT = "lower the inflation or widen the passage"
@@ -779,9 +784,15 @@ def plan_route(
 # ---------------------------------------------------------------------------------------
 # Slot assignment
 # ---------------------------------------------------------------------------------------
-def assign_slots(start_xy: ArrayLike, slots_xy: ArrayLike, leader: int) -> np.ndarray:
+def assign_slots(
+    start_xy: ArrayLike, slots_xy: ArrayLike, leader: int, kinds: ArrayLike | None = None
+) -> np.ndarray:
     """Which slot each UAV takes: the leader keeps its own, the followers take the others
     so as to minimise the total straight-line travel.
+
+    With ``kinds``, a UAV takes only a slot made for a UAV of its own kind (unequal UAVs:
+    each slot of the unequal-UAV optimum is at its UAV's own elevation, so only a UAV with
+    the same radar may take it); the assignment is then solved per kind.
 
     The followers' problem is a linear assignment on the Euclidean distances, solved by
     :func:`scipy.optimize.linear_sum_assignment`. Ties (several assignments of equal total
@@ -797,6 +808,9 @@ def assign_slots(start_xy: ArrayLike, slots_xy: ArrayLike, leader: int) -> np.nd
         The slots' positions, m.
     leader : int
         Index of the leader (UAV ``leader`` takes slot ``leader``).
+    kinds : array_like, shape (M,), optional
+        A label per UAV (for example its :attr:`crlbswarm.Radar.snr_constant`); UAV ``m``
+        takes only slots ``j`` with ``kinds[j] == kinds[m]`` (default: all one kind).
 
     Returns
     -------
@@ -821,13 +835,20 @@ def assign_slots(start_xy: ArrayLike, slots_xy: ArrayLike, leader: int) -> np.nd
     lead = _v.count(leader, "leader", 0)
     if lead >= n:
         raise FieldError("leader", f"must be a UAV index below {n}, got {lead}")
-    others = np.array([m for m in range(n) if m != lead], dtype=np.int64)
+    if kinds is None:
+        label = np.zeros(n)
+    else:
+        label = _v.finite(kinds, "kinds")
+        if label.shape != (n,):
+            raise FieldError("kinds", f"expected shape ({n},), got {label.shape}")
     out = np.empty(n, dtype=np.int64)
     out[lead] = lead
-    if others.size:
-        cost = np.hypot(*(start[others, None, :] - slots[None, others, :]).transpose(2, 0, 1))
-        rows, cols = linear_sum_assignment(cost)
-        out[others[rows]] = others[cols]
+    for kind in np.unique(label):
+        others = np.flatnonzero((label == kind) & (np.arange(n) != lead))
+        if others.size:
+            diff = start[others, None, :] - slots[None, others, :]
+            rows, cols = linear_sum_assignment(np.hypot(*diff.transpose(2, 0, 1)))
+            out[others[rows]] = others[cols]
     return out
 
 
@@ -844,10 +865,40 @@ class GuidanceConfig(ConfigModel):
 
 
 class FormationConfig(ConfigModel):
-    """Which UAV takes which slot of F* (not in the paper)."""
+    """The formation flown over the target and which UAV takes which slot (not in the
+    paper): F* in closed form, or the best formation that fits when F* is blocked
+    (:func:`crlbswarm.constrained_design`, ``docs/constrained-design.md``)."""
 
     assignment: Literal["optimal", "index"] = Field(
         "optimal",
         description="optimal: the followers take the slots that minimise the total travel "
         "from the start (Hungarian); index: UAV m takes slot m (the paper)",
+    )
+    design: Literal["auto", "closed_form"] = Field(
+        "auto",
+        description="auto: F* in closed form, or, if a slot of F* is blocked (within "
+        "control.safety_radius of an obstacle) or beyond max_radius, the best formation that "
+        "fits (constrained design); closed_form: F* only, a blocked F* is refused (the paper)",
+    )
+    criterion: Literal["A", "D", "E"] = Field(
+        "A",
+        description="criterion of the constrained design: A (CRLB, the paper's), D or E",
+    )
+    max_radius: PositiveFloat | None = Field(
+        None, description="largest distance from the target to a slot, m (none by default)"
+    )
+    starts: int | None = Field(
+        None,
+        ge=1,
+        le=MAX_SCENARIO_STARTS,
+        description=f"starts of the constrained design (1 to {MAX_SCENARIO_STARTS}; default "
+        "64 up to 16 UAVs, then fewer)",
+    )
+    seed: int = Field(
+        0, ge=0, le=2**63 - 1, description="seed of the constrained design's random starts"
+    )
+    objective: Literal["sum", "max"] = Field(
+        "sum",
+        description="with extra_targets: the UAVs are split between the targets to minimise "
+        "the sum or the largest of their CRLBs",
     )

@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import FieldError
 from .output import atomic_path, staged_folder, write_csv, write_json, write_text
-from .scenario import Scenario, load_scenario
+from .scenario import GroupPlan, Scenario, load_scenario
 
 __all__ = [
     "CENTROID_TOL",
@@ -32,6 +32,7 @@ __all__ = [
     "PROGRESS_TOL",
     "RESULT_FILES",
     "STEADY_STATE_S",
+    "GroupMissionResult",
     "MissionResult",
     "load_results",
     "outcome_report",
@@ -101,7 +102,10 @@ class MissionResult:
         Distance from the formation's centroid to the target along the planned route (the
         straight line without the planner), m: the progress of the mission.
     bound : float
-        Theoretical bound :math:`4/\\sum_m w_m^*`, eq. (11), m^2.
+        The CRLB the formation converges to, m^2: the attainable optimum
+        (:func:`crlbswarm.crlb_bound`; :math:`4/\\sum_m w_m^*` of eq. (11) for equal UAVs),
+        or, when :math:`F^*` is blocked, the CRLB of the constrained design
+        (:attr:`crlbswarm.Scenario.formation_design`).
     """
 
     scenario: Scenario
@@ -134,8 +138,10 @@ class MissionResult:
 
     @property
     def centroid_error(self) -> np.ndarray:
-        """Distance from the formation centroid to the (true) target, m, shape (B, K+1)."""
-        offset = self.centroid - self.target
+        """Distance from the formation centroid to its place over the (true) target, m,
+        shape (B, K+1): the target itself for a regular polygon, else the target plus the
+        formation's centre offset (:attr:`crlbswarm.scenario.FormationDesign.centre_offset`)."""
+        offset = self.centroid - self.target - self.scenario.formation_design.centre_offset
         return np.hypot(offset[..., 0], offset[..., 1])
 
     @property
@@ -397,6 +403,9 @@ class MissionResult:
             "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
             "outcomes": self.outcome_counts,
         }
+        design = self.scenario.formation_design
+        if design.method != "closed form":  # (F* blocked: what the constrained design cost)
+            out["design"] = design.to_dict()
         if self.estimate is not None:
             out["steady_rmse_over_sqrt_pcrb"] = self.steady_rmse_over_sqrt_pcrb
         for name, values in self.metrics.items():
@@ -478,6 +487,132 @@ def outcome_report(result: MissionResult) -> list[str]:
     return lines
 
 
+@dataclass(frozen=True, eq=False)
+class GroupMissionResult:
+    """A batch of missions with several targets (:func:`crlbswarm.simulate_groups`).
+
+    Each group is a :class:`MissionResult` of its own scenario (its UAVs, target, leader and
+    formation; :attr:`crlbswarm.Scenario.group_plan`), with its own metrics and outcomes,
+    except ``separation``: the smallest distance between any two UAVs of the whole swarm,
+    so that a near miss between two groups counts as a collision in both.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The whole scenario.
+    plan : GroupPlan
+        The allocation of the UAVs to the targets, the groups and their scenarios.
+    groups : tuple of MissionResult
+        One result per group, in the order of the targets.
+    """
+
+    scenario: Scenario
+    plan: GroupPlan
+    groups: tuple[MissionResult, ...]
+
+    @property
+    def n_runs(self) -> int:
+        """Number of runs B."""
+        return self.groups[0].n_runs
+
+    @property
+    def positions(self) -> np.ndarray | None:
+        """Every UAV's positions in the swarm's order, m, shape (B, K+1, M, 2), or None if
+        the trajectories were not kept."""
+        first = self.groups[0].positions
+        if first is None:
+            return None
+        out = np.empty((first.shape[0], first.shape[1], self.scenario.uavs.count, 2))
+        for members, group in zip(self.plan.members, self.groups, strict=True):
+            out[:, :, members] = group.positions
+        return out
+
+    @property
+    def metrics(self) -> dict[str, np.ndarray]:
+        """Per-run metrics of every group, one row per run and group: the group's index and
+        target, then the columns of :attr:`MissionResult.metrics`."""
+        rows: dict[str, list[np.ndarray]] = {}
+        for g, group in enumerate(self.groups):
+            target = group.scenario.target
+            head = {"group": np.full(self.n_runs, g), "target_x": np.full(self.n_runs, target[0]),
+                    "target_y": np.full(self.n_runs, target[1])}  # fmt: skip
+            for name, values in {**head, **group.metrics}.items():
+                rows.setdefault(name, []).append(np.asarray(values))
+        return {name: np.concatenate(parts) for name, parts in rows.items()}
+
+    @property
+    def outcome_counts(self) -> dict[str, int]:
+        """How many (run, group) pairs ended in each outcome."""
+        names, counts = np.unique(self.metrics["outcome"], return_counts=True)
+        return {str(n): int(c) for n, c in zip(names, counts, strict=True)}
+
+    def summary(self) -> dict[str, Any]:
+        """The allocation and each group's :meth:`MissionResult.summary`, JSON-ready.
+
+        Returns
+        -------
+        dict
+            Scenario name, runs, the allocation (objective, whether exhaustive, each
+            target's attainable CRLB), the outcome counts over runs and groups, and per
+            group its target, UAVs, leader and summary.
+        """
+        allocation = self.plan.allocation
+        return {
+            "scenario": self.scenario.name,
+            "runs": self.n_runs,
+            "allocation": {
+                "objective": allocation.objective,
+                "exhaustive": allocation.exhaustive,
+                "evaluated": allocation.evaluated,
+                "crlb_m2": allocation.crlb.tolist(),
+                "value_m2": allocation.value,
+            },
+            "outcomes": self.outcome_counts,
+            "groups": [
+                {
+                    "target": list(group.scenario.target),
+                    "uavs": members.tolist(),
+                    "leader": int(leader),
+                    **group.summary(),
+                }
+                for members, leader, group in zip(
+                    self.plan.members, self.plan.leaders, self.groups, strict=True
+                )
+            ],
+        }
+
+    def save(self, folder: str | os.PathLike[str], *, overwrite: bool = False) -> list[Path]:
+        """Write the result to a folder: each group's result in ``group<g>/`` (a folder
+        :func:`load_results` reads), then ``metrics.csv`` (every group's rows),
+        ``scenario.toml`` (the whole scenario) and ``summary.json`` (:meth:`summary`, last:
+        its presence marks a complete set), staged as :meth:`MissionResult.save` does.
+
+        Parameters
+        ----------
+        folder : str or path-like
+            Output folder: missing or empty (created if missing).
+        overwrite : bool, default False
+            Accept a folder that already holds files, replacing those of the same names.
+
+        Returns
+        -------
+        list of pathlib.Path
+            The files and group folders written, ``summary.json`` last.
+        """
+        from . import __version__
+
+        summary = self.summary()
+        summary["crlbswarm_version"] = __version__
+        names = [f"group{g}" for g in range(len(self.groups))]
+        with staged_folder(folder, "folder", overwrite=overwrite, marker=RESULT_FILES[3]) as out:
+            for name, group in zip(names, self.groups, strict=True):
+                group.save(out / name)
+            write_csv(out / RESULT_FILES[1], self.metrics)
+            write_text(out / RESULT_FILES[2], self.scenario.to_toml())
+            write_json(out / RESULT_FILES[3], summary)
+        return [Path(folder) / name for name in (*names, *RESULT_FILES[1:])]
+
+
 #: The array attributes of a result (everything but the scenario and the derived metrics).
 _ARRAY_FIELDS = tuple(
     f.name for f in dataclasses.fields(MissionResult) if f.init and f.name != "scenario"
@@ -506,6 +641,11 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
         If its scenario file is not a valid scenario.
     """
     path = Path(folder)
+    if not (path / RESULT_FILES[0]).is_file() and (path / "group0").is_dir():
+        raise FieldError(
+            "folder", f"{str(path)!r} holds a mission with several targets: load each group's "
+            f"folder ({str(path / 'group0')!r}, ...)",
+        )  # fmt: skip
     for name in RESULT_FILES:
         if not (path / name).is_file():
             raise FieldError("folder", f"{str(path)!r} holds no saved result ({name} missing)")

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import typing
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -36,23 +37,30 @@ from pydantic import Field, ValidationInfo, create_model, field_validator, model
 from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat, model_to_toml, read_toml, read_toml_file, validate
 from ._validation import MIN_UAVS
+from .constrained import constrained_design
 from .control import ControlGains, EtaRule
-from .design import optimal_formation
+from .design import crlb_bound, optimal_formation
 from .errors import FieldError, ScenarioError
+from .fisher import crlb
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph
-from .obstacles import Obstacles
+from .multitarget import TargetAllocation, allocate_targets
+from .obstacles import Obstacles, obstacle_clearance
 from .planning import FormationConfig, GuidanceConfig, Roadmap, build_roadmap
 from .radar import Radar, radar_parameters
 from .safety import SafetyConfig, disturbance_margins
 from .scenario_checks import check_scenario
+from .spatial import min_separation
 
 __all__ = [
     "BUILTIN_SCENARIOS",
+    "DESIGN_CLEARANCE",
     "CircleObstacle",
     "DisturbanceConfig",
     "EstimationConfig",
     "FormationConfig",
+    "FormationDesign",
     "GraphConfig",
+    "GroupPlan",
     "GuidanceConfig",
     "RadarConfig",
     "RectangleObstacle",
@@ -62,7 +70,9 @@ __all__ = [
     "TimeConfig",
     "UavsConfig",
     "builtin_scenario_text",
+    "design_formation",
     "load_scenario",
+    "plan_groups",
 ]
 
 
@@ -83,6 +93,9 @@ MAX_STEP = 60.0
 #: Most obstacles of a scenario (each is checked by every UAV at every step; with the
 #: planner on, :data:`crlbswarm.planning.MAX_ROADMAP_OBSTACLES` is the limit).
 MAX_OBSTACLES = 10_000
+
+#: Most extra targets of a scenario (each needs a group of at least three UAVs).
+MAX_EXTRA_TARGETS = 32
 
 #: Largest target speed, m/s (targets of low-altitude networks; keeps the target's path
 #: inside the model's range over a mission).
@@ -178,8 +191,11 @@ else:
         __doc__=_RadarTable.__doc__,
         **{
             p.name: (
-                PositiveFloat,
-                Field(p.default, description=f"{p.label}, {p.unit or 'linear'}"),
+                PositiveFloat | Annotated[list[PositiveFloat], Field(min_length=1)],
+                Field(
+                    p.default,
+                    description=f"{p.label}, {p.unit or 'linear'} (or one value per UAV)",
+                ),
             )
             for p in radar_parameters()
         },
@@ -419,6 +435,11 @@ class Scenario(ConfigModel):
         description=f"common flight altitude H, m ({_v.MIN_ALTITUDE:g} to {_v.MAX_ALTITUDE:g})"
     )
     target: Pair = Field(description="target position s = [x, y], m")
+    extra_targets: Annotated[list[Pair], Field(max_length=MAX_EXTRA_TARGETS)] = Field(
+        default_factory=list,
+        description="more targets [[x, y], ...], m: the swarm splits into one group per "
+        "target, each with its own leader and formation (none by default)",
+    )
     uavs: UavsConfig = Field(description="count, leader and start of the UAVs")
     time: TimeConfig = Field(description="step and duration")
     radar: RadarConfig = Field(RadarConfig(), description="radar (paper profile by default)")
@@ -487,14 +508,18 @@ class Scenario(ConfigModel):
 
     @property
     def formation_radius(self) -> float:
-        """Radius of F* around the target, m."""
-        offsets = self.slots - np.asarray(self.target)
+        """Radius of the formation around its centre (the target for F*), m."""
+        offsets = self.slots - np.asarray(self.target) - self.formation_design.centre_offset
         return float(np.max(np.hypot(offsets[:, 0], offsets[:, 1])))
 
-    @property
+    @cached_property
     def formation_side(self) -> float:
-        """Side of the regular polygon F* (distance between neighbouring slots), m."""
-        return 2.0 * self.formation_radius * math.sin(math.pi / self.uavs.count)
+        """Smallest distance between two slots, m: the side of the regular polygon F*
+        (:math:`2 r^* \\sin(\\pi/M)`), or for any other formation (unequal UAVs, a
+        constrained design) the smallest distance between two of its slots."""
+        if self.formation_design.regular:
+            return 2.0 * self.formation_radius * math.sin(math.pi / self.uavs.count)
+        return float(min_separation(np.ascontiguousarray(self.slots)))
 
     @cached_property
     def eta_rule(self) -> EtaRule:
@@ -544,16 +569,21 @@ class Scenario(ConfigModel):
     @property
     def planner_on(self) -> bool:
         """Whether the leader follows a planned route: ``guidance.planner`` on, obstacles to
-        plan around, and a static target (the roadmap is built for one goal)."""
+        plan around, a static target and no extra targets (the roadmap is built for one
+        goal)."""
         return (
-            self.guidance.planner and self.obstacle_set.count > 0 and not self.target_motion.moving
+            self.guidance.planner
+            and self.obstacle_set.count > 0
+            and not self.target_motion.moving
+            and not self.extra_targets
         )
 
     @property
     def route_goal(self) -> np.ndarray:
-        """The goal of the route: the target, or the filter's prior mean with sensing in the
-        loop (the UAVs do not know the target)."""
-        goal = np.asarray(self.target, dtype=float)
+        """The goal of the route: the formation's centre over the target (the target for
+        F*), or over the filter's prior mean with sensing in the loop (the UAVs do not know
+        the target)."""
+        goal = np.asarray(self.target, dtype=float) + self.formation_design.centre_offset
         if self.estimation.enabled:
             goal = goal + np.asarray(self.estimation.prior_offset)
         return goal
@@ -577,19 +607,25 @@ class Scenario(ConfigModel):
         return self.control.resolve(self.adjacency, self.uavs.leader)
 
     @cached_property
+    def formation_design(self) -> FormationDesign:
+        """The formation flown over the target (:class:`FormationDesign`): :math:`F^*` in
+        closed form, or, with ``formation.design = "auto"`` and :math:`F^*` blocked, the
+        constrained design (made once, when the scenario is validated)."""
+        return design_formation(self)
+
+    @cached_property
+    def group_plan(self) -> GroupPlan | None:
+        """With ``extra_targets``: which UAVs serve which target and each group's own
+        scenario (:func:`plan_groups`); None with one target."""
+        return plan_groups(self) if self.extra_targets else None
+
+    @property
     def slots(self) -> np.ndarray:
-        """The slots of the CRLB-optimal formation F* over the target, in the order of the
-        UAVs' indices (slot m is UAV m's unless ``formation.assignment`` reassigns them),
-        shape (M, 2), m (read-only)."""
-        f = optimal_formation(
-            self.uavs.count,
-            np.asarray(self.target),
-            self.altitude,
-            self.radar_model,
-            rotation=math.radians(self.uavs.rotation_deg),
-        )
-        f.flags.writeable = False
-        return f
+        """The slots of the formation over the target (F*, or the constrained design when F*
+        is blocked: :attr:`formation_design`), in the order of the UAVs' indices (slot m is
+        UAV m's unless ``formation.assignment`` reassigns them), shape (M, 2), m
+        (read-only)."""
+        return self.formation_design.slots
 
     # -- TOML ------------------------------------------------------------------------------
     @classmethod
@@ -652,6 +688,289 @@ class Scenario(ConfigModel):
 # ---------------------------------------------------------------------------------------
 # Built-in scenarios: TOML files inside the package
 # ---------------------------------------------------------------------------------------
+#: With the constrained design, every slot keeps this much more than
+#: ``control.safety_radius`` from the obstacles (relative): the repulsion, zero beyond
+#: :math:`l_\text{safe}`, then leaves the formation alone over the target.
+DESIGN_CLEARANCE = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class FormationDesign:
+    """The formation a scenario flies over its target (:attr:`Scenario.formation_design`).
+
+    Attributes
+    ----------
+    slots : ndarray, shape (M, 2)
+        Slot positions over the target, m (read-only).
+    bound : float
+        The CRLB of ``slots`` the mission converges to, m^2: the attainable optimum
+        (:func:`crlbswarm.crlb_bound`) for :math:`F^*`, the CRLB (eq. (10)) of the
+        constrained design otherwise.
+    unconstrained_bound : float
+        :func:`crlbswarm.crlb_bound`, m^2 (``bound / unconstrained_bound`` is what the
+        obstacles cost).
+    method : str
+        ``"closed form"`` (:math:`F^*`) or ``"constrained"``.
+    regular : bool
+        Whether ``slots`` is the regular polygon of the paper (equal UAVs, closed form).
+    centre_offset : ndarray, shape (2,)
+        The formation's centre (the mean of its slots) minus the target, m: exactly 0 for a
+        regular polygon. The centroid converges to target + centre_offset, and the eta
+        rule scales the formation about its centre.
+    blocked : str
+        Why :math:`F^*` did not fit (empty for the closed form).
+    criterion : str
+        Criterion of the design (``formation.criterion``; the closed form is optimal for
+        all three).
+    ratio : float
+        The criterion of ``slots`` over its unconstrained optimum (1 for :math:`F^*`).
+    active : tuple of str
+        The constrained design's active constraints (empty for the closed form).
+    """
+
+    slots: np.ndarray
+    bound: float
+    unconstrained_bound: float
+    method: str
+    regular: bool
+    centre_offset: np.ndarray
+    blocked: str
+    criterion: str
+    ratio: float
+    active: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The design's figures, JSON-ready (the slots excluded)."""
+        return {
+            "method": self.method,
+            "criterion": self.criterion,
+            "bound_m2": self.bound,
+            "unconstrained_bound_m2": self.unconstrained_bound,
+            "ratio": self.ratio,
+            "blocked": self.blocked,
+            "active": list(self.active),
+        }
+
+
+def _blocked(sc: Scenario, fstar: np.ndarray) -> tuple[str, str]:
+    """Why :math:`F^*` cannot be flown as it is ("" if it can): a slot within
+    ``control.safety_radius`` of an obstacle (or inside one), beyond
+    ``formation.max_radius``, or, with the safety filter on, two slots closer than twice
+    :attr:`Scenario.start_separation` (unequal UAVs' azimuths may bring two together)."""
+    obstacles = sc.obstacle_set
+    if obstacles.count:
+        clearance = obstacle_clearance(fstar, obstacles)
+        if np.any(clearance <= sc.control.safety_radius):
+            m = int(np.argmin(clearance))
+            return "target", (
+                f"the slot of UAV {m} in F* over the target is inside an obstacle"
+                if clearance[m] <= 0
+                else f"the slot of UAV {m} in F* over the target is {clearance[m]:.3g} m from "
+                f"an obstacle, within control.safety_radius = {sc.control.safety_radius:g} m"
+            )
+    limit = sc.formation.max_radius
+    radius = float(np.max(np.hypot(*(fstar - np.asarray(sc.target)).T)))
+    if limit is not None and radius > limit:
+        return "formation.max_radius", (
+            f"F* has radius {radius:.4g} m, beyond formation.max_radius = {limit:g} m"
+        )
+    if sc.safety.enabled and sc.formation.design == "auto":  # (else refused by the checks)
+        need = 2.0 * sc.start_separation
+        gap = float(min_separation(np.ascontiguousarray(fstar)))
+        if gap < need:
+            return "safety.min_separation", (
+                f"two slots of F* are {gap:.4g} m apart, closer than twice the start "
+                f"separation ({need:.4g} m, safety.min_separation and its margin)"
+            )
+    return "", ""
+
+
+def _centre(slots: np.ndarray, target: np.ndarray, irregular: bool) -> np.ndarray:
+    """The mean of the slots minus the target, read-only; exactly 0 for a regular polygon
+    (whose computed mean differs from the target only by rounding)."""
+    offset = np.mean(slots, axis=0) - target if irregular else np.zeros(2)
+    offset.flags.writeable = False
+    return offset
+
+
+_DESIGN_FIELDS = {
+    "max_radius": "formation.max_radius",
+    "starts": "formation.starts",
+    "min_separation": "safety.min_separation",
+    "n_uavs": "uavs.count",
+}
+
+
+def design_formation(sc: Scenario) -> FormationDesign:
+    """The formation of a scenario: :math:`F^*` (:func:`crlbswarm.optimal_formation`), or,
+    when it is blocked and ``formation.design = "auto"``, the best formation that fits
+    (:func:`crlbswarm.constrained_design` with the scenario's obstacles, each slot at least
+    ``(1 + DESIGN_CLEARANCE) control.safety_radius`` from them, two slots at least twice
+    :attr:`Scenario.start_separation` apart, ``formation.max_radius``, criterion, starts
+    and seed).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario (its fields each valid).
+
+    Returns
+    -------
+    FormationDesign
+        The slots, the bound the mission converges to and how they were made.
+
+    Raises
+    ------
+    FieldError
+        If :math:`F^*` is blocked and ``formation.design = "closed_form"``, or no formation
+        fits (one line naming the field to change).
+    """
+    n, target, radar = sc.uavs.count, np.asarray(sc.target, dtype=float), sc.radar_model
+    rotation = math.radians(sc.uavs.rotation_deg)
+    fstar = optimal_formation(n, target, sc.altitude, radar, rotation=rotation)
+    best = float(crlb_bound(n, sc.altitude, radar))
+    field, blocked = _blocked(sc, fstar)
+    spec = sc.formation
+    if not blocked:
+        fstar.flags.writeable = False
+        return FormationDesign(
+            slots=fstar, bound=best, unconstrained_bound=best, method="closed form",
+            regular=not radar.per_uav, centre_offset=_centre(fstar, target, radar.per_uav),
+            blocked="", criterion=spec.criterion, ratio=1.0, active=(),
+        )  # fmt: skip
+    if spec.design == "closed_form":
+        hint = '(formation.design = "auto" flies the best formation that fits)'
+        raise FieldError(field, f"{blocked}: the formation could never settle there {hint}")
+    if n > _v.MAX_DESIGN_UAVS:
+        raise FieldError(field, f"{blocked}, and the constrained design takes at most "
+                         f"{_v.MAX_DESIGN_UAVS} UAVs (uavs.count = {n})")  # fmt: skip
+    try:
+        found = constrained_design(
+            n, target, sc.altitude, radar, criterion=spec.criterion,
+            obstacles=sc.obstacle_set if sc.obstacle_set.count else None,
+            clearance=(1.0 + DESIGN_CLEARANCE) * sc.control.safety_radius,
+            min_separation=2.0 * sc.start_separation, max_radius=spec.max_radius,
+            starts=spec.starts, seed=spec.seed, rotation=rotation,
+        )  # fmt: skip
+    except FieldError as exc:
+        raise FieldError(
+            _DESIGN_FIELDS.get(exc.field, field),
+            f"{blocked}, and no formation fits: {exc.reason}",
+        ) from None
+    slots = np.array(found.positions)
+    slots.flags.writeable = False
+    return FormationDesign(
+        slots=slots, bound=float(crlb(slots, target, sc.altitude, radar)),
+        unconstrained_bound=best, method="constrained", regular=False,
+        centre_offset=_centre(slots, target, True), blocked=blocked,
+        criterion=found.criterion, ratio=found.ratio, active=found.active,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class GroupPlan:
+    """The groups of a scenario with several targets (:attr:`Scenario.group_plan`).
+
+    Attributes
+    ----------
+    allocation : TargetAllocation
+        Which UAVs serve which target (:func:`crlbswarm.allocate_targets`; target 0 is
+        ``target``, target k the k-th of ``extra_targets``).
+    members : tuple of ndarray of int
+        The UAVs of each group, in increasing order (indices of the whole swarm).
+    leaders : ndarray of int, shape (G,)
+        Each group's leader (an index of the whole swarm): ``uavs.leader`` in its own
+        group, the lowest index in the others.
+    scenarios : tuple of Scenario
+        Each group's own mission: its UAVs (count, starts, radar), its target and leader,
+        the rest of the fields as in the whole scenario (the planner off).
+    """
+
+    allocation: TargetAllocation
+    members: tuple[np.ndarray, ...]
+    leaders: np.ndarray
+    scenarios: tuple[Scenario, ...]
+
+
+def _target_field(g: int) -> str:
+    return "target" if g == 0 else f"extra_targets.{g - 1}"
+
+
+def plan_groups(sc: Scenario) -> GroupPlan:
+    """Split a swarm between its targets and build each group's scenario.
+
+    The allocation is :func:`crlbswarm.allocate_targets` over ``target`` and
+    ``extra_targets`` with ``formation.objective`` (exhaustive for small swarms, a stated
+    local search above). Group g flies its own formation (its design, F* or the constrained
+    one, over its target) with its own leader; its scenario is the whole scenario restricted
+    to its UAVs, validated like any scenario, so a group that cannot fly is refused with one
+    line naming its target.
+
+    Parameters
+    ----------
+    sc : Scenario
+        A scenario with ``extra_targets`` (its fields each valid).
+
+    Returns
+    -------
+    GroupPlan
+        The allocation, the groups, their leaders and their scenarios.
+
+    Raises
+    ------
+    FieldError
+        When the UAVs are too few for the targets, or a group's mission is invalid.
+    """
+    targets = np.array([sc.target, *sc.extra_targets], dtype=float)
+    n = sc.uavs.count
+    try:
+        allocation = allocate_targets(
+            targets, n, sc.altitude, sc.radar_model, objective=sc.formation.objective
+        )
+    except FieldError as exc:
+        field = {"n_uavs": "uavs.count", "objective": "formation.objective"}
+        raise FieldError(field.get(exc.field, "extra_targets"), exc.reason) from None
+    data = sc.model_dump()
+    members, leaders, scenarios = [], [], []
+    for g, uavs in enumerate(allocation.groups):
+        lead = sc.uavs.leader if sc.uavs.leader in uavs else int(uavs[0])
+        part = {**data, "name": f"{sc.name}/group{g}", "target": targets[g].tolist(),
+                "extra_targets": []}  # fmt: skip
+        part["uavs"] = {**data["uavs"], "count": int(uavs.size),
+                        "leader": int(np.flatnonzero(uavs == lead)[0])}  # fmt: skip
+        if sc.uavs.start is not None:
+            part["uavs"]["start"] = [sc.uavs.start[m] for m in uavs]
+        part["radar"] = {
+            key: [value[m] for m in uavs] if isinstance(value, list) else value
+            for key, value in data["radar"].items()
+        }
+        part["guidance"] = {**data["guidance"], "planner": False}
+        try:
+            scenarios.append(Scenario.model_validate(part))
+        except Exception as exc:  # a pydantic ValidationError wrapping the group's FieldError
+            reason = _one_reason(exc)
+            raise FieldError(
+                _target_field(g), f"the group of UAVs {uavs.tolist()} cannot fly: {reason}"
+            ) from None
+        members.append(uavs)
+        leaders.append(lead)
+    return GroupPlan(allocation, tuple(members), np.array(leaders, dtype=np.int64),
+                     tuple(scenarios))  # fmt: skip
+
+
+def _one_reason(exc: Exception) -> str:
+    """The first reason of a validation error, as ``field: reason``."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        first = exc.errors()[0]
+        where = ".".join(str(x) for x in first["loc"])
+        cause = first.get("ctx", {}).get("error")
+        text = str(cause) if isinstance(cause, FieldError) else first["msg"]
+        return f"{where}: {text}" if where and not isinstance(cause, FieldError) else text
+    return str(exc)
+
+
 def _builtin_files() -> dict[str, Any]:
     folder = resources.files(__package__).joinpath("scenarios")
     return {f.name.removesuffix(".toml"): f for f in folder.iterdir() if f.name.endswith(".toml")}

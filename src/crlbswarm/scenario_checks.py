@@ -48,6 +48,8 @@ def check_scenario(scenario: Scenario) -> None:
     """
     obstacles = scenario.obstacle_set
     _check_outside(obstacles, np.asarray(scenario.target)[None], "target")
+    if scenario.extra_targets:
+        _check_outside(obstacles, np.asarray(scenario.extra_targets), "extra_targets")
     if scenario.uavs.start is not None:
         _check_outside(obstacles, np.asarray(scenario.uavs.start), "uavs.start")
     elif scenario.uavs.start_region is not None:  # (exactly one of the two is set)
@@ -57,6 +59,9 @@ def check_scenario(scenario: Scenario) -> None:
                 raise FieldError(
                     "uavs.start_region", f"overlaps obstacles[{i}]; starts could be inside it"
                 )
+    if scenario.extra_targets:  # one group per target, each checked as its own mission
+        _check_groups(scenario)
+        return
     try:
         adjacency = scenario.adjacency
     except FieldError as exc:
@@ -65,22 +70,26 @@ def check_scenario(scenario: Scenario) -> None:
     _check_gains(scenario, adjacency)
     _check_motion(scenario)
     _check_estimation(scenario, obstacles)
-    clearance = obstacle_clearance(scenario.slots, obstacles) if obstacles.count else None
-    if clearance is not None and np.any(clearance <= scenario.control.safety_radius):
-        m = int(np.argmin(clearance))
-        where = (
-            "inside an obstacle"
-            if clearance[m] <= 0
-            else f"{clearance[m]:.3g} m from an obstacle, within control.safety_radius = "
-            f"{scenario.control.safety_radius:g} m"
-        )
-        raise FieldError(
-            "target",
-            f"the slot of UAV {m} in F* over the target is {where}: the formation could "
-            "never settle there",
-        )
+    scenario.formation_design  # noqa: B018  (F*, or the best formation that fits: may refuse)
     _check_safety(scenario)
     _check_route(scenario)
+
+
+def _check_groups(scenario: Scenario) -> None:
+    """A swarm with several targets: the layers that need one formation are off, the starts
+    fit, and each group's own scenario (:attr:`Scenario.group_plan`) is valid."""
+    if scenario.estimation.enabled:
+        raise FieldError("estimation.enabled", "several targets fly with known targets: set "
+                         "estimation.enabled = false")  # fmt: skip
+    if scenario.target_motion.moving:
+        raise FieldError("target_motion.model", 'several targets are static: set '
+                         'target_motion.model = "static"')  # fmt: skip
+    if scenario.graph.kind == "edges":
+        why = 'each group builds its own graph of this kind; "edges" names UAVs of the swarm'
+        raise FieldError("graph.kind", f"with several targets {why}: choose another kind")
+    if scenario.safety.enabled:
+        _check_starts(scenario)
+    scenario.group_plan  # noqa: B018  (allocates the UAVs and validates every group)
 
 
 def _check_safety(scenario: Scenario) -> None:
@@ -120,6 +129,13 @@ def _check_safety(scenario: Scenario) -> None:
             f"the gap in one step; it must be at least {reach:.4g} m (min_separation, its "
             "margin and 2 max_speed time.step)",
         )
+    _check_starts(scenario)
+
+
+def _check_starts(scenario: Scenario) -> None:
+    """With the safety filter on: the explicit starts keep the start separation, or the start
+    region has room to draw them so."""
+    safety, need = scenario.safety, scenario.start_separation
     if scenario.uavs.start is not None:
         start = np.asarray(scenario.uavs.start, dtype=float)
         gaps = np.hypot(*(start[:, None] - start[None, :]).transpose(2, 0, 1))
@@ -221,6 +237,12 @@ def _check_estimation(scenario: Scenario, obstacles: Obstacles) -> None:
         raise FieldError(
             "estimation.measure_every",
             f"{est.measure_every} exceeds the {scenario.time.steps} steps of the mission",
+        )
+    if est.enabled and scenario.radar_model.per_uav:
+        raise FieldError(
+            "estimation.enabled",
+            "the filter in the loop models equal UAVs; with one radar value per UAV set "
+            "estimation.enabled = false (the formation then knows the target)",
         )
     if not motion.moving:
         return

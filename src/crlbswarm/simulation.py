@@ -22,20 +22,22 @@ from typing import Any
 import numpy as np
 
 from . import _validation as _v
-from .design import crlb_bound
 from .errors import FieldError, SimulationDivergedError
 from .fisher import crlb
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
     REPLAN_PERIOD,
+    GroupArrays,
+    GroupOutputs,
     MissionConstants,
     RunInputs,
     RunOutputs,
     SceneArrays,
     run_batch,
+    run_group_batch,
 )
 from .planning import assign_slots
-from .results import MissionResult, result_nbytes
+from .results import GroupMissionResult, MissionResult, result_nbytes
 from .scenario import Scenario
 from .tracking import (
     motion_matrices,
@@ -44,7 +46,14 @@ from .tracking import (
     target_trajectories,
 )
 
-__all__ = ["MAX_ITERATED_SEEDS", "MAX_SEED", "check_memory", "simulate", "start_positions"]
+__all__ = [
+    "MAX_ITERATED_SEEDS",
+    "MAX_SEED",
+    "check_memory",
+    "simulate",
+    "simulate_groups",
+    "start_positions",
+]
 
 #: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
@@ -222,7 +231,8 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         leader=sc.uavs.leader,
         radius=sc.formation_radius,
         altitude=sc.altitude,
-        snr_constant=float(sc.radar_model.snr_constant),
+        # (the filter in the loop's A: equal UAVs only, which the scenario checks ensure)
+        snr_constant=float(np.mean(sc.radar_model.snr_constant)),
         estimate=est.enabled,
         measure_every=est.measure_every,
         safety=safety.enabled,
@@ -239,6 +249,8 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         carrot=sc.route_carrot,
         replan_every=max(1, round(REPLAN_PERIOD / sc.time.step)),
         steer_radius=sc.steering_radius,
+        centre_x=float(sc.formation_design.centre_offset[0]),
+        centre_y=float(sc.formation_design.centre_offset[1]),
     )
     return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
@@ -286,12 +298,14 @@ def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers, pos: np.nd
     streams, assign the slots of F* (into ``buf.delta``), and the true target trajectories;
     returns the target states (B, K+1, 4)."""
     motion_rngs = []
-    offsets = sc.slots - np.asarray(sc.target)
+    offsets = sc.slots - np.asarray(sc.target) - sc.formation_design.centre_offset
+    # Unequal UAVs: a slot is made for its UAV's radar; only a UAV of the same kind takes it.
+    kinds = sc.radar_model.snr_constant if sc.radar_model.per_uav else None
     for i, s in enumerate(seeds):
         start_rng, noise_rng, range_rng, motion_rng = _streams(int(s), 4)
         pos[i, 0] = _start(sc, start_rng)
         if sc.formation.assignment == "optimal":
-            buf.delta[i] = offsets[assign_slots(pos[i, 0], sc.slots, sc.uavs.leader)]
+            buf.delta[i] = offsets[assign_slots(pos[i, 0], sc.slots, sc.uavs.leader, kinds)]
         else:
             buf.delta[i] = offsets
         noise_rng.standard_normal(out=buf.noise[i])
@@ -401,6 +415,8 @@ def simulate(
             "scenario", f"expected a crlbswarm.Scenario, got {type(scenario).__name__}"
         )
     sc = scenario
+    if sc.extra_targets:
+        raise FieldError("scenario", "has extra_targets (several targets): use simulate_groups")
     k_steps, m_uavs = sc.time.steps, sc.uavs.count
     seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories)
     n_runs = seed_arr.shape[0]
@@ -440,5 +456,154 @@ def simulate(
         clearance=batch.clearance,
         separation=batch.separation,
         distance_to_go=batch.distance_to_go,
-        bound=float(crlb_bound(m_uavs, sc.altitude, sc.radar_model)),
+        bound=sc.formation_design.bound,
     )
+
+
+def _group_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConstants, GroupArrays]:
+    """The compiled arguments of a mission with several targets: the scene, constants and
+    safety settings of group 0's scenario (the same fields for every group), the gains with
+    the smallest epsilon and gamma of the groups (each resolved on its own graph: stable for
+    all), the eta rule with the largest minimum (each group's floor kept), and the groups."""
+    plan = sc.group_plan
+    assert plan is not None  # (called with extra targets only)
+    scenarios = plan.scenarios
+    scene, _, _, const = _kernel_arguments(scenarios[0])
+    gains = [g.gains for g in scenarios]
+    eps = min(float(g.epsilon) for g in gains)
+    gamma = min(float(g.gamma) for g in gains)
+    ctl = gains[0].model_copy(update={"epsilon": eps, "gamma": gamma})
+    rule_sc = max(scenarios, key=lambda g: g.eta_rule.minimum)
+    rule = rule_sc.eta_rule.kernel_tuple(ctl)
+    sizes = [g.uavs.count for g in scenarios]
+    indptr = [g.adjacency.indptr for g in scenarios]
+    indices = [g.adjacency.indices for g in scenarios]
+    groups = GroupArrays(
+        bounds=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        leaders=np.array([g.uavs.leader for g in scenarios], dtype=np.int64),
+        goals=np.array(
+            [np.asarray(g.target) + g.formation_design.centre_offset for g in scenarios]
+        ),
+        radius=np.array([g.formation_radius for g in scenarios]),
+        indptr=np.concatenate(indptr).astype(np.int64),
+        indices=np.concatenate(indices).astype(np.int64),
+        ptr_off=np.concatenate([[0], np.cumsum([p.size for p in indptr])]).astype(np.int64),
+        idx_off=np.concatenate([[0], np.cumsum([i.size for i in indices])]).astype(np.int64),
+    )
+    return scene, ctl.kernel_tuple(), rule, const, groups
+
+
+def simulate_groups(
+    scenario: Scenario,
+    seed: int | None = None,
+    seeds: Iterable[int] | None = None,
+    *,
+    keep_trajectories: bool = True,
+) -> GroupMissionResult:
+    """Run a mission with several targets: the swarm split into groups (one per target, each
+    with its own leader and formation, :attr:`crlbswarm.Scenario.group_plan`) flown together.
+
+    Not in the paper (issue 11, item 4). Each group flies the paper's laws on its own UAVs
+    and graph toward its own target (:func:`crlbswarm.mission_kernel.run_groups`); the
+    obstacle repulsion, the safety filter and the motion act on all UAVs at once, so the
+    safety filter keeps UAVs of different groups apart too. The starts are drawn for the
+    whole swarm (``uavs.start_region``, the start separation), the disturbance from each
+    run's seed as :func:`simulate` does; the slot assignment is made within each group.
+    The planner and the filter in the loop are not used (the targets are static and known).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario with ``extra_targets``.
+    seed : int, optional
+        Seed of a single run (default 0).
+    seeds : iterable of int, optional
+        Seeds of a batch (instead of ``seed``); run b is bit-identical to the single run
+        with ``seeds[b]``.
+    keep_trajectories : bool, default True
+        Keep every UAV's positions and velocities in the result (they are always computed:
+        each group's CRLB comes from them).
+
+    Returns
+    -------
+    GroupMissionResult
+        One :class:`MissionResult` per group, and the allocation.
+
+    Raises
+    ------
+    FieldError
+        If the scenario has no extra targets, or for an invalid seed or a batch that
+        cannot fit in memory.
+    SimulationDivergedError
+        If a run diverges (naming the run, its seed and the step).
+    """
+    if not isinstance(scenario, Scenario):
+        raise FieldError(
+            "scenario", f"expected a crlbswarm.Scenario, got {type(scenario).__name__}"
+        )
+    sc = scenario
+    plan = sc.group_plan
+    if plan is None:
+        raise FieldError("scenario", "has one target (no extra_targets): use simulate")
+    k_steps, m_uavs = sc.time.steps, sc.uavs.count
+    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, True)
+    n_runs, n_groups = seed_arr.shape[0], len(plan.members)
+    scene, ctl, rule, const, groups = _group_arguments(sc)
+    order = np.concatenate(plan.members)  # group order: row i is UAV order[i] of the swarm
+    k1 = k_steps + 1
+    q = np.empty((n_runs, k1, m_uavs, 2))
+    v = np.zeros((n_runs, k1, m_uavs, 2))
+    noise = np.empty((n_runs, k_steps, m_uavs, 2))
+    delta = np.empty((n_runs, m_uavs, 2))
+    for i, s in enumerate(seed_arr):
+        start_rng, noise_rng = _streams(int(s), 4)[:2]
+        start = _start(sc, start_rng)
+        noise_rng.standard_normal(out=noise[i])
+        noise[i] = noise[i][:, order]
+        q[i, 0] = start[order]
+        for g, gsc in enumerate(plan.scenarios):
+            lo, hi = groups.bounds[g], groups.bounds[g + 1]
+            offsets = gsc.slots - groups.goals[g]
+            if gsc.formation.assignment == "optimal":
+                kinds = gsc.radar_model.snr_constant if gsc.radar_model.per_uav else None
+                offsets = offsets[assign_slots(q[i, 0, lo:hi], gsc.slots, gsc.uavs.leader,
+                                               kinds)]  # fmt: skip
+            delta[i, lo:hi] = offsets
+    noise *= sc.disturbance.sigma
+    outs = GroupOutputs(
+        q, v, np.empty((n_runs, k1, n_groups, 2)), np.ones((n_runs, k1, n_groups)),
+        np.empty((n_runs, k1, n_groups)), np.empty((n_runs, k1)),
+        np.empty((n_runs, k_steps, n_groups)), np.empty((n_runs, k1, n_groups)),
+    )  # fmt: skip
+    unused = np.zeros((n_runs, k1, 2))
+    inps = RunInputs(noise, np.zeros((n_runs, k1, m_uavs)), unused, unused,
+                     np.zeros((n_runs, 2)), delta)  # fmt: skip
+    status = np.empty(n_runs, dtype=np.int64)
+    run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups)
+    bad = np.flatnonzero(status >= 0)
+    if bad.size:
+        step = int(status[bad[0]])
+        raise SimulationDivergedError(
+            f"run {int(bad[0])} (seed {seed_arr[bad[0]]}) diverged at step {step} "
+            f"(t = {step * sc.time.step:g} s): NaN or a UAV beyond the model's range; check "
+            "the gains and the disturbance of the scenario"
+        )
+    time = np.arange(k1) * sc.time.step
+    results = []
+    for g, gsc in enumerate(plan.scenarios):
+        lo, hi = groups.bounds[g], groups.bounds[g + 1]
+        pos = q[:, :, lo:hi]
+        target = np.broadcast_to(np.asarray(gsc.target, dtype=float), (n_runs, k1, 2))
+        results.append(MissionResult(
+            scenario=gsc, seeds=seed_arr, time=time,
+            positions=pos.copy() if keep_trajectories else None,
+            velocities=v[:, :, lo:hi].copy() if keep_trajectories else None,
+            reference_velocity=outs.v_ref[:, :, g].copy(), centroid=pos.mean(axis=-2),
+            target=target.copy(), estimate=None, estimate_variance=None, pcrb=None,
+            eta=outs.eta[:, :, g].copy(),
+            crlb=crlb(pos, target, gsc.altitude, gsc.radar_model),
+            cost=outs.cost[:, :, g].copy(), clearance=outs.clearance[:, :, g].copy(),
+            separation=outs.separation, distance_to_go=outs.distance_to_go[:, :, g].copy(),
+            bound=gsc.formation_design.bound,
+        ))  # fmt: skip
+    return GroupMissionResult(scenario=sc, plan=plan, groups=tuple(results))
