@@ -163,3 +163,14 @@ def test_simulate_and_simulate_groups_refuse_the_other_kind():
         simulate(_scenario())
     with pytest.raises(FieldError, match="use simulate"):
         simulate_groups(load_scenario("paper"))
+
+
+def test_campaigns_refuse_several_targets(tmp_path):
+    from crlbswarm.campaign import CampaignSpec, run_campaign
+
+    path = tmp_path / "mt.toml"
+    path.write_text(_scenario().to_toml())
+    spec = CampaignSpec.from_toml(f'base = "{path}"\n[seeds]\ncount = 2\n')
+    with pytest.raises(ScenarioError, match="extra_targets: campaigns fly one target"):
+        run_campaign(spec, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

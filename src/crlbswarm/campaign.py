@@ -400,7 +400,13 @@ def plan_tasks(spec: CampaignSpec) -> tuple[list[dict[str, Any]], list[tuple[int
     largest = 0
     for i, changes in enumerate(spec.variants()):
         data = _apply(base, changes, "random.fields" if spec.random is not None else "grid")
-        scenario = Scenario.from_dict(data, source=f"variant {i} ({_label(changes)})")
+        source = f"variant {i} ({_label(changes)})"
+        scenario = Scenario.from_dict(data, source=source)
+        if scenario.extra_targets:
+            raise ScenarioError(
+                source, "extra_targets", "campaigns fly one target per mission; several "
+                "targets are flown by crlbswarm simulate (or simulate_groups)",
+            )  # fmt: skip
         need = _task_bytes(scenario, min(spec.batch_size, spec.seeds.count), spec.trajectories)
         if need > largest:  # the check reads /proc: only when a variant needs more
             largest = need
