@@ -137,7 +137,7 @@ def test_known_height_at_one_altitude_is_the_paper_fim(radar, altitude):
 
 def test_batches_broadcast():
     uavs, target = scene(3)
-    batch = np.stack([uavs, [*uavs, 1.0, 2.0, 3.0]])
+    batch = np.stack([uavs, uavs + np.array([1.0, 2.0, 3.0])])
     j = cs.fisher_information_3d(batch, target)
     assert j.shape == (2, 3, 3)
     np.testing.assert_allclose(j[0], cs.fisher_information_3d(uavs, target), rtol=1e-15)
