@@ -41,6 +41,7 @@ MODULES = [
     "crlbswarm.results",
     "crlbswarm.estimation",
     "crlbswarm.montecarlo",
+    "crlbswarm.three_d",
     "crlbswarm.tracking",
     "crlbswarm.campaign",
     "crlbswarm.paper",

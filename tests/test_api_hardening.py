@@ -47,6 +47,9 @@ RULE = cs.EtaRule()
 GAINS = cs.ControlGains(epsilon=0.2, gamma=0.2)
 FIM = cs.fisher_information(F6, TARGET, 20.0)
 F_CV, Q_CV, _ = cs.motion_matrices("constant_velocity", 0.1, 0.0, 0.5)
+TARGET3 = np.array([80.0, 90.0, 2.0])
+F3D = np.column_stack([F6, [20.0, 22.0, 25.0, 21.0, 30.0, 24.0]])
+RANGES3 = np.linalg.norm(F3D - TARGET3, axis=-1)
 
 
 class Rng:
@@ -125,6 +128,14 @@ SPECS: list[tuple[str, Callable[..., Any], dict[str, Any], set[str], bool]] = [
     ("Radar.take", cs.Radar(tx_power=[0.1, 0.2, 0.3]).take, dict(indices=[0, 2]), set(), False),
     ("allocate_targets", cs.allocate_targets, dict(targets_xy=[[0.0, 0.0], [200.0, 0.0]], n_uavs=6, altitude=20.0, radar=cs.Radar(), objective="sum", method="auto"), set(), False),
     ("constrained_design", cs.constrained_design, dict(n_uavs=4, target_xy=TARGET, altitude=20.0, radar=cs.Radar(), criterion="A", max_radius=12.0, min_separation=1.0, starts=2, seed=0), set(), False),
+    ("fisher_information_3d", cs.fisher_information_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), target_height="unknown"), set(), False),
+    ("crlb_3d", cs.crlb_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), target_height="known"), set(), True),
+    ("optimal_elevation_3d", cs.optimal_elevation_3d, dict(altitude=20.0, radar=cs.Radar()), set(), False),
+    ("design_3d", cs.design_3d, dict(altitudes=[20.0, 20.5, 21.0, 20.0, 22.0], target_xyz=TARGET3, radar=cs.Radar(), target_height="unknown", rotation=0.1, starts=2, seed=0), set(), False),
+    ("optimal_formation_3d", cs.optimal_formation_3d, dict(altitudes=[20.0] * 6, target_xyz=TARGET3, radar=cs.Radar(), target_height="known", rotation=0.1, starts=2, seed=0), set(), False),
+    ("measure_ranges_3d", cs.measure_ranges_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), rng=Rng), set(), False),
+    ("estimate_target_3d", cs.estimate_target_3d, dict(uav_xyz=F3D, measured_ranges=RANGES3, radar=cs.Radar(), init=TARGET3 + 1.0, max_iter=30, tol=1e-10), set(), False),
+    ("monte_carlo_mse_3d", cs.monte_carlo_mse_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), n_trials=8, rng=Rng), set(), True),
     ("estimator_vs_altitude", cs.estimator_vs_altitude, dict(altitudes=[20.0], n_uavs=4, radar=cs.Radar(), n_trials=3, seed=0, fixed_radius=5.0, arc_span=1.5, disc_factor=2.0), set(), False),
 ]  # fmt: skip
 

@@ -142,6 +142,18 @@ from .simulation import (
 from .spatial import (
     smallest_separation as smallest_separation,
 )
+from .three_d import (
+    TARGET_HEIGHTS as TARGET_HEIGHTS,
+    Design3D as Design3D,
+    crlb_3d as crlb_3d,
+    design_3d as design_3d,
+    estimate_target_3d as estimate_target_3d,
+    fisher_information_3d as fisher_information_3d,
+    measure_ranges_3d as measure_ranges_3d,
+    monte_carlo_mse_3d as monte_carlo_mse_3d,
+    optimal_elevation_3d as optimal_elevation_3d,
+    optimal_formation_3d as optimal_formation_3d,
+)
 from .tracking import (
     motion_matrices as motion_matrices,
     posterior_crlb as posterior_crlb,

@@ -29,8 +29,10 @@ from .radar import Radar
 __all__ = [
     "EstimatorSweep",
     "MonteCarloResult",
+    "check_trials",
     "estimator_vs_altitude",
     "monte_carlo_mse",
+    "summarise",
 ]
 
 _DEFAULT_RADAR = Radar()
@@ -57,9 +59,10 @@ class MonteCarloResult:
     crlb : float
         tr(J^-1) of the formation at the true target, m^2.
     bias : ndarray, shape (2,)
-        Mean error, m.
+        Mean error, m (shape (3,) from :func:`crlbswarm.monte_carlo_mse_3d`).
     bias_ci : ndarray, shape (2, 2)
-        95 % confidence interval of each bias component (rows x, y; columns low, high), m.
+        95 % confidence interval of each bias component (rows x, y (, z); columns low,
+        high), m.
     """
 
     n_trials: int
@@ -81,14 +84,44 @@ class MonteCarloResult:
         return self.mse_ci[0] / self.crlb, self.mse_ci[1] / self.crlb
 
 
-def _check_trials(n_trials: int, n_uavs: int) -> None:
+def check_trials(n_trials: int, n_uavs: int) -> None:
     """Refuse, before allocating, trials whose arrays would not fit in memory (the
-    estimator holds a few dozen arrays of ``n_trials x n_uavs``)."""
+    estimator holds a few dozen arrays of ``n_trials x n_uavs``).
+
+    Parameters
+    ----------
+    n_trials : int
+        Number of trials.
+    n_uavs : int
+        Number of UAVs (ranges per trial).
+
+    Raises
+    ------
+    FieldError
+        Naming ``n_trials``, if the request would take more than half of the memory this
+        process may still allocate.
+    """
     size = float(n_trials) * n_uavs
     _v.check_elements(size, "n_trials", f"{n_trials} trials of {n_uavs} ranges", copies=40)
 
 
-def _summarise(errors: np.ndarray, failed: np.ndarray, bound: float) -> MonteCarloResult:
+def summarise(errors: np.ndarray, failed: np.ndarray, bound: float) -> MonteCarloResult:
+    """The statistics of a Monte Carlo run: MSE, bias and their 95 % normal intervals.
+
+    Parameters
+    ----------
+    errors : ndarray, shape (n, D)
+        Estimation errors of ``n >= 2`` trials (D = 2 or 3 coordinates), m.
+    failed : ndarray of bool, shape (n,)
+        Trials whose estimator did not converge (counted, and kept in the MSE).
+    bound : float
+        The CRLB of the geometry, m^2.
+
+    Returns
+    -------
+    MonteCarloResult
+        The summary.
+    """
     n = errors.shape[0]
     sq = np.sum(errors * errors, axis=-1)
     mse = float(sq.mean())
@@ -152,7 +185,7 @@ def monte_carlo_mse(
     h = _v.scalar(altitude, "altitude")
     _v.altitude(h, "altitude")
     n = _v.count(n_trials, "n_trials", 2)
-    _check_trials(n, q.shape[0])
+    check_trials(n, q.shape[0])
     if not isinstance(rng, np.random.Generator):
         raise FieldError("rng", f"expected a numpy.random.Generator, got {type(rng).__name__}")
     spread = None if prior_std is None else _v.scalar(prior_std, "prior_std")
@@ -170,7 +203,7 @@ def monte_carlo_mse(
         # that is not absurdly wide)
         init = np.clip(init, -_v.MAX_COORDINATE, _v.MAX_COORDINATE)
     est = estimate_target(batch, ranges, h, radar, init=init)
-    return _summarise(est.position - s, est.failed, float(crlb(q, s, h, radar)))
+    return summarise(est.position - s, est.failed, float(crlb(q, s, h, radar)))
 
 
 @dataclass(frozen=True)
@@ -256,7 +289,7 @@ def estimator_vs_altitude(
     if altitudes is None:
         altitudes = np.geomspace(10.0, 3000.0, 12)
     n = _v.count(n_trials, "n_trials", 2)
-    _check_trials(n, _v.uav_count(n_uavs, "n_uavs"))
+    check_trials(n, _v.uav_count(n_uavs, "n_uavs"))
     seed = _v.seed(seed, "seed")
     h, formations = formations_over_altitude(
         altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed
