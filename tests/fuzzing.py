@@ -233,8 +233,21 @@ def _cli_case(rng: random.Random, tmp: Path) -> list[str]:
         args = ["design"]
         option = rng.choice(
             ["--uavs", "--altitude", "--rotation", "--target", "--tx-power", "--tx-power-dbm",
-             "--noise-power", "--kappa", "--frequency", "--rcs-dbsm"]
+             "--noise-power", "--kappa", "--frequency", "--rcs-dbsm", "constrained"]
         )  # fmt: skip
+        if option == "constrained":  # a constraint option with an odd value (few starts)
+            odd = rng.choice(
+                [["--obstacle", f"circle:0,0,{bad_number()}"], ["--obstacle", "rect:1"],
+                 ["--no-fly", f"poly:0,0,1,{bad_number()},1,0"], ["--no-fly", "circle:"],
+                 ["--clearance", bad_number()], ["--min-separation", bad_number()],
+                 ["--max-radius", bad_number()], ["--altitude-band", f"{bad_number()}:30"],
+                 ["--altitude-band", "10:20", "--altitude-band", "1:2"],
+                 ["--criterion", rng.choice(["", "X", "ad", "e"])], ["--starts", bad_int()],
+                 ["--seed", bad_int()], ["--target", "0,0", "--target", bad_number() + ",1"],
+                 ["--objective", "min"], ["--scenario", rng.choice(["nope", str(tmp)])],
+                 ["-o", bad_out], ["-o", str(existing_file)]]
+            )  # fmt: skip
+            return [*args, *odd, "--starts", "1"] if "--starts" not in odd else [*args, *odd]
         if option == "--uavs":
             return [*args, option, rng.choice([bad_int(), "100000", "2", "10000000"])]
         if option == "--target":

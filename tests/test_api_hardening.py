@@ -136,6 +136,11 @@ SPECS: list[tuple[str, Callable[..., Any], dict[str, Any], set[str], bool]] = [
     ("measure_ranges_3d", cs.measure_ranges_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), rng=Rng), set(), False),
     ("estimate_target_3d", cs.estimate_target_3d, dict(uav_xyz=F3D, measured_ranges=RANGES3, radar=cs.Radar(), init=TARGET3 + 1.0, max_iter=30, tol=1e-10), set(), False),
     ("monte_carlo_mse_3d", cs.monte_carlo_mse_3d, dict(uav_xyz=F3D, target_xyz=TARGET3, radar=cs.Radar(), n_trials=8, rng=Rng), set(), True),
+    ("constrained_design bands", cs.constrained_design, dict(n_uavs=4, target_xy=TARGET, altitude=20.0, radar=cs.Radar(), criterion="E", max_radius=12.0, altitude_bands=[[10.0, 30.0], [15.0, 15.0], [20.0, 40.0], [5.0, 8.0]], starts=2, seed=0), set(), False),
+    ("criterion_value per_uav", cs.criterion_value, dict(positions=F6, target_xy=TARGET, altitude=np.array([10.0, 20.0, 30.0, 15.0, 25.0, 20.0]), radar=cs.Radar(), criterion="D", per_uav=True), set(), True),
+    ("optimal_value per_uav", cs.optimal_value, dict(n_uavs=6, altitude=np.array([10.0, 20.0, 30.0, 15.0, 25.0, 20.0]), radar=cs.Radar(), criterion="E", per_uav=True), set(), False),
+    ("constrained_report", cs.constrained_report, dict(n_uavs=4, target_xy=TARGET, altitude=20.0, radar=cs.Radar(), max_radius=12.0, altitude_bands=[10.0, 30.0], starts=1, seed=0, rotation_deg=10.0), set(), False),
+    ("allocation_report", cs.allocation_report, dict(targets_xy=[[0.0, 0.0], [200.0, 0.0]], n_uavs=6, altitude=20.0, radar=cs.Radar(), objective="max", method="auto"), set(), False),
     ("estimator_vs_altitude", cs.estimator_vs_altitude, dict(altitudes=[20.0], n_uavs=4, radar=cs.Radar(), n_trials=3, seed=0, fixed_radius=5.0, arc_span=1.5, disc_factor=2.0), set(), False),
 ]  # fmt: skip
 

@@ -14,6 +14,7 @@ from .campaign import (
 from .constrained import (
     ConstrainedDesign as ConstrainedDesign,
     constrained_design as constrained_design,
+    constrained_report as constrained_report,
     criterion_value as criterion_value,
     optimal_value as optimal_value,
 )
@@ -99,6 +100,7 @@ from .montecarlo import (
 from .multitarget import (
     TargetAllocation as TargetAllocation,
     allocate_targets as allocate_targets,
+    allocation_report as allocation_report,
 )
 from .obstacles import (
     Obstacles as Obstacles,

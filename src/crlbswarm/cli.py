@@ -26,7 +26,7 @@ from .errors import CampaignError, ConfigError, FieldError, SimulationDivergedEr
 from .paper import FIGURE_FORMATS, FIGURE_RUNS
 from .radar import Radar, radar_parameters
 
-__all__ = ["build_parser", "format_design", "main"]
+__all__ = ["build_parser", "format_allocation", "format_constrained", "format_design", "main"]
 
 EXIT_USAGE = 2
 
@@ -99,14 +99,29 @@ def _add_radar_options(parser: argparse.ArgumentParser, fields: dict[str, str]) 
             )
 
 
-def _radar_from_args(args: argparse.Namespace) -> Radar:
+def _given_radar(args: argparse.Namespace) -> dict[str, Any]:
+    """The radar options given, by field name (linear or decibel)."""
     given = {}
     for p in radar_parameters():
         for dest in (p.name, p.db_name):
             value = getattr(args, dest, None) if dest else None
             if value is not None:  # one value for every UAV, or one per UAV
                 given[dest] = value[0] if len(value) == 1 else value
-    return Radar.from_db(**given)
+    return given
+
+
+def _radar_from_args(args: argparse.Namespace, base: Radar | None = None) -> Radar:
+    """The radar of the options, over the paper profile or over ``base`` (a scenario's):
+    a field given (in linear or decibel form) replaces the base's."""
+    given = _given_radar(args)
+    if base is None:
+        return Radar.from_db(**given)
+    kept = {
+        p.name: getattr(base, p.name)
+        for p in radar_parameters()
+        if p.name not in given and not (p.db_name and p.db_name in given)
+    }
+    return Radar.from_db(**kept, **given)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -147,52 +162,82 @@ def _add_design(sub: Any) -> None:
         sub,
         "design",
         _cmd_design,
-        help="print the CRLB-optimal formation F* for a scene",
-        description="Closed-form CRLB-optimal formation (paper Sec. III): optimal elevation, "
-        "radius, positions, CRLB and the bound 4/sum(w).",
+        help="print the CRLB-optimal formation for a scene (with constraints or targets)",
+        description="The CRLB-optimal formation of a scene. Without constraints, the closed "
+        "form F* (paper Sec. III): optimal elevation, radius, positions, CRLB and the bound "
+        "4/sum(w). With any constraint option (or --scenario), the numerical constrained "
+        "design (criterion value, unconstrained optimum, ratio, active constraints). With "
+        "--target given two or more times, the allocation of the UAVs to the targets.",
     )
-    _option(
-        design,
-        fields,
-        "--uavs",
-        field="n_uavs",
-        type=int,
-        default=6,
-        help=f"number of UAVs M >= {MIN_UAVS} (default %(default)s)",
-    )
-    _option(
-        design,
-        fields,
-        "--altitude",
-        field="altitude",
-        type=float,
-        default=20.0,
-        metavar="H",
-        help="flight altitude H, m (default %(default)s)",
-    )
-    _option(
-        design,
-        fields,
-        "--target",
-        field="target_xy",
-        type=float,
-        nargs=2,
-        default=(0.0, 0.0),
-        metavar=("X", "Y"),
-        help="target position, m (default 0 0)",
-    )
-    _option(
-        design,
-        fields,
-        "--rotation",
-        field="rotation_deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="azimuth of UAV 1 seen from the target, degrees (default %(default)s)",
-    )
-    design.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    scene = design.add_argument_group("scene")
+    _option(scene, fields, "--uavs", field="n_uavs", type=int, default=None,
+            help=f"number of UAVs M >= {MIN_UAVS} (default 6, or the scenario's)")  # fmt: skip
+    _option(scene, fields, "--altitude", field="altitude", type=float, default=None,
+            metavar="H", help="flight altitude H, m (default 20, or the scenario's)")  # fmt: skip
+    _option(scene, fields, "--target", field="target_xy", action="append", nargs="+",
+            default=None, metavar="X,Y",
+            help="target position, m, as X,Y (or X Y); give it again for several targets, "
+            "allocated with allocate_targets (default 0,0, or the scenario's; a negative "
+            "X: --target=-5,3)")  # fmt: skip
+    fields["targets_xy"] = fields["target_xy"]
+    _option(scene, fields, "--rotation", field="rotation_deg", type=float, default=None,
+            metavar="DEG",
+            help="azimuth of UAV 1 seen from the target, degrees (default 0)")  # fmt: skip
+    fields["rotation"] = fields["rotation_deg"]
+    _option(scene, fields, "--scenario", field="scenario", default=None,
+            metavar="SCENARIO",
+            help=f"take M, altitude, target, radar, obstacles, control.safety_radius (as "
+            f"clearance) and safety.min_separation (when enabled) from a scenario "
+            f"({_BUILTIN_HELP}); options given override them")  # fmt: skip
+    _add_constraint_options(design, fields)
+    out = design.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    _option(out, fields, "-o", "--out", field="out", type=_path, default=None,
+            metavar="FILE",
+            help="also write the JSON to FILE (atomically; an existing file is refused "
+            "unless --force)")  # fmt: skip
+    out.add_argument("--force", action="store_true", help="replace FILE if it exists")
     _add_radar_options(design, fields)
+
+
+def _add_constraint_options(design: Any, fields: dict[str, str]) -> None:
+    """The options of the constrained design and of the allocation."""
+    group = design.add_argument_group(
+        "constrained design (any of these selects constrained_design)"
+    )
+    _option(group, fields, "--criterion", field="criterion", default=None,
+            metavar="A|D|E",
+            help="A: tr(J^-1) (the CRLB), D: det(J^-1), E: lambda_max(J^-1) "
+            "(default A)")  # fmt: skip
+    _option(group, fields, "--obstacle", field="obstacles", action="append", default=None,
+            metavar="SHAPE",
+            help="an obstacle, rect:X0,X1,Y0,Y1 or circle:X,Y,R (m); repeat for more")  # fmt: skip
+    fields["rectangles"] = fields["circles"] = fields["obstacles"]
+    _option(group, fields, "--no-fly", field="no_fly", action="append", default=None,
+            metavar="SHAPE",
+            help="a no-fly zone, circle:X,Y,R or poly:X1,Y1,X2,Y2,X3,Y3,... (m, vertices "
+            "in order); repeat for more")  # fmt: skip
+    for flag, field, what in (
+        ("--clearance", "clearance", "smallest distance from each UAV to every obstacle "
+         "and no-fly zone, m (default 0, or the scenario's control.safety_radius)"),
+        ("--min-separation", "min_separation", "smallest distance between two UAVs, m "
+         "(default 0, or the scenario's safety.min_separation)"),
+        ("--max-radius", "max_radius", "largest distance from the target to a UAV, m"),
+    ):  # fmt: skip
+        _option(group, fields, flag, field=field, type=float, default=None, metavar="M",
+                help=what)  # fmt: skip
+    _option(group, fields, "--altitude-band", field="altitude_bands", action="append",
+            default=None, metavar="LOW:HIGH",
+            help="altitude band, m: once for every UAV, or once per UAV in order; each "
+            "UAV's altitude is then designed in its band")  # fmt: skip
+    _option(group, fields, "--starts", field="starts", type=int, default=None,
+            help="starts of the search (default: 64 up to 16 UAVs, then fewer)")  # fmt: skip
+    _option(group, fields, "--seed", field="seed", type=int, default=None,
+            help="seed of the random starts (default 0)")  # fmt: skip
+    _option(group, fields, "--objective", field="objective", default=None,
+            metavar="sum|max",
+            help="with several targets: minimise the sum or the largest of their CRLBs "
+            "(default sum)")  # fmt: skip
 
 
 def _add_figures(sub: Any) -> None:
@@ -424,14 +469,256 @@ def format_design(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _cmd_design(args: argparse.Namespace) -> int:
-    from .design import design_report
-    from .output import json_text
+def format_constrained(report: dict[str, Any]) -> str:
+    """Render :func:`crlbswarm.constrained.constrained_report` as a readable table.
 
-    report = design_report(
-        args.uavs, args.altitude, args.target, _radar_from_args(args), args.rotation
-    )
-    print(json_text(report) if args.json else format_design(report))
+    Parameters
+    ----------
+    report : dict
+        The report.
+
+    Returns
+    -------
+    str
+        The table, one line per quantity and per UAV.
+    """
+    x, y = report["target_m"]
+    unit, c = report["unit"], report["constraints"]
+    obs = c["obstacles"]
+    bands = report["altitude_bands_m"]
+    altitude = (f"{report['altitude_m']:g} m" if bands is None
+                else "per UAV, in its band (table)")  # fmt: skip
+    limits = [
+        f"obstacles {len(obs['rectangles']) + len(obs['circles'])}",
+        f"no-fly zones {len(c['no_fly'])}",
+        f"clearance {c['clearance_m']:g} m",
+        f"min separation {c['min_separation_m']:g} m",
+        "max radius " + ("none" if c["max_radius_m"] is None else f"{c['max_radius_m']:g} m"),
+    ]
+    reference = "closed form" + (", each UAV at its band's low end" if bands else "")
+    lines = [
+        f"Constrained design, criterion {report['criterion']}",
+        f"  UAVs M               {report['n_uavs']}",
+        f"  altitude H           {altitude}",
+        f"  target s             ({x:g}, {y:g}) m",
+        f"  constraints          {', '.join(limits)}",
+        f"  criterion value      {report['value']:.6e} {unit}",
+        f"  unconstrained        {report['unconstrained']:.6e} {unit}   ({reference})",
+        f"  ratio                {report['ratio']:.9f}",
+        f"  CRLB tr(J^-1)        {report['crlb_m2']:.6e} m^2"
+        f"   (RMSE bound {100 * report['rmse_bound_m']:.3f} cm)",
+        f"  starts               {report['starts']} ({report['feasible_starts']} feasible), "
+        f"seed {report['seed']}",
+        "  active constraints   " + (", ".join(report["active"]) or "none"),
+        "  positions (m):",
+        "     UAV           x           y" + ("   altitude (m)        band (m)" if bands else ""),
+    ]
+    for i, (px, py) in enumerate(report["positions_m"]):
+        row = f"    {i + 1:4d}  {px:10.4f}  {py:10.4f}"
+        if bands:
+            low, high = bands[i]
+            row += f"   {report['altitudes_m'][i]:12.4f}   {low:g} to {high:g}"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def format_allocation(report: dict[str, Any]) -> str:
+    """Render :func:`crlbswarm.multitarget.allocation_report` as a readable table.
+
+    Parameters
+    ----------
+    report : dict
+        The report.
+
+    Returns
+    -------
+    str
+        The table: the allocation, then each target's group and formation.
+    """
+    how = (f"exhaustive: all {report['evaluated']} assignments evaluated (the optimum)"
+           if report["exhaustive"] else
+           f"heuristic: local search, {report['evaluated']} assignments evaluated "
+           "(a local optimum)")  # fmt: skip
+    lines = [
+        f"Allocation of {report['n_uavs']} UAVs to {len(report['targets_m'])} targets",
+        f"  altitude H           {report['altitude_m']:g} m",
+        f"  objective            {report['objective']} of the CRLBs = "
+        f"{report['value_m2']:.6e} m^2",
+        f"  search               {how}",
+    ]
+    for group in report["groups"]:
+        x, y = group["target_m"]
+        uavs = ", ".join(str(u) for u in group["uavs"])
+        lines += [
+            f"  target {group['target']} at ({x:g}, {y:g}) m: UAVs {uavs}",
+            f"    CRLB tr(J^-1)      {group['crlb_m2']:.6e} m^2"
+            f"   (RMSE bound {100 * group['rmse_bound_m']:.3f} cm)",
+            "     UAV           x           y",
+        ]
+        for u, (px, py) in zip(group["uavs"], group["positions_m"], strict=True):
+            lines.append(f"    {u:4d}  {px:10.4f}  {py:10.4f}")
+    return "\n".join(lines)
+
+
+#: The options that select the constrained design (argparse destinations).
+_CONSTRAINED = ("criterion", "obstacle", "no_fly", "clearance", "min_separation", "max_radius",
+                "altitude_band", "starts", "seed")  # fmt: skip
+
+#: The library field each of them sets (to name it in an error).
+_FIELD = {"obstacle": "obstacles", "altitude_band": "altitude_bands"}
+
+
+def _numbers(text: str, field: str, form: str, count: int | None = None) -> list[float]:
+    """The comma-separated numbers of ``text`` (``count`` of them, if given)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or (count is not None and len(values) != count):
+        raise FieldError(field, f"expected {form}, got {text!r}")
+    return values
+
+
+def _targets(given: list[list[str]] | None) -> list[list[float]] | None:
+    """``--target X,Y`` (or ``X Y``), once or more."""
+    if given is None:
+        return None
+    targets = []
+    for values in given:
+        text = values[0] if len(values) == 1 else ",".join(values)
+        targets.append(_numbers(text, "target_xy", "X,Y (or X Y)", 2))
+    return targets
+
+
+def _obstacles(given: list[str]) -> Any:
+    from .obstacles import Obstacles
+
+    rects, circles = [], []
+    form = "rect:X0,X1,Y0,Y1 or circle:X,Y,R"
+    for item in given:
+        kind, _, rest = item.partition(":")
+        if kind.strip().lower() in ("rect", "rectangle"):
+            rects.append(_numbers(rest, "obstacles", form, 4))
+        elif kind.strip().lower() == "circle":
+            circles.append(_numbers(rest, "obstacles", form, 3))
+        else:
+            raise FieldError("obstacles", f"expected {form}, got {item!r}")
+    return Obstacles(rectangles=rects or (), circles=circles or ())
+
+
+def _no_fly(given: list[str]) -> list[Any]:
+    zones: list[Any] = []
+    form = "circle:X,Y,R or poly:X1,Y1,X2,Y2,X3,Y3,..."
+    for item in given:
+        kind, _, rest = item.partition(":")
+        if kind.strip().lower() == "circle":
+            zones.append(tuple(_numbers(rest, "no_fly", form, 3)))
+        elif kind.strip().lower() in ("poly", "polygon"):
+            values = _numbers(rest, "no_fly", form)
+            if len(values) % 2 or len(values) < 6:
+                raise FieldError("no_fly", f"a polygon needs 3 or more X,Y pairs, got {item!r}")
+            zones.append([values[k : k + 2] for k in range(0, len(values), 2)])
+        else:
+            raise FieldError("no_fly", f"expected {form}, got {item!r}")
+    return zones
+
+
+def _bands(given: list[str], n_uavs: int) -> list[float] | list[list[float]]:
+    bands = [_numbers(b.replace(":", ",", 1), "altitude_bands", "LOW:HIGH", 2) for b in given]
+    if len(bands) not in (1, n_uavs):
+        raise FieldError(
+            "altitude_bands",
+            f"give one band for every UAV or one per UAV ({n_uavs}), got {len(bands)}",
+        )
+    return bands[0] if len(bands) == 1 else bands
+
+
+def _scene(args: argparse.Namespace) -> dict[str, Any]:
+    """The scene of ``crlbswarm design``: the scenario's (if any), the options over it."""
+    sc = None
+    if args.scenario is not None:
+        from .scenario import load_scenario
+
+        try:
+            sc = load_scenario(args.scenario)
+        except ConfigError as exc:  # a file's own field: the message names it
+            raise FieldError("scenario", str(exc)) from None
+
+    def pick(value: Any, from_scenario: Any, default: Any) -> Any:
+        return value if value is not None else (from_scenario if sc is not None else default)
+
+    n = pick(args.uavs, sc and sc.uavs.count, 6)
+    obstacles = None
+    if args.obstacle is not None:
+        obstacles = _obstacles(args.obstacle)
+    elif sc is not None and sc.obstacles:
+        obstacles = sc.obstacle_set
+    separation = sc is not None and sc.safety.enabled and sc.safety.min_separation
+    return {
+        "scenario": sc,
+        "n_uavs": n,
+        "altitude": pick(args.altitude, sc and sc.altitude, 20.0),
+        "targets": _targets(args.target) or [list(sc.target) if sc else [0.0, 0.0]],
+        "rotation_deg": pick(args.rotation, sc and sc.uavs.rotation_deg, 0.0),
+        "radar": _radar_from_args(args, sc.radar_model if sc else None),
+        "obstacles": obstacles,
+        "no_fly": _no_fly(args.no_fly) if args.no_fly is not None else None,
+        "clearance": pick(args.clearance, sc and sc.control.safety_radius, 0.0),
+        "min_separation": pick(args.min_separation, separation or 0.0, 0.0),
+        "altitude_bands": None if args.altitude_band is None else _bands(args.altitude_band, n),
+    }
+
+
+def _design_report(args: argparse.Namespace) -> dict[str, Any]:
+    """The report ``crlbswarm design`` prints: closed form, constrained or allocation."""
+    from .design import design_report
+
+    scene = _scene(args)
+    targets = scene["targets"]
+    if len(targets) > 1:
+        from .multitarget import allocation_report
+
+        given = [k for k in (*_CONSTRAINED, "rotation") if getattr(args, k) is not None]
+        if scene["scenario"] is not None or given:
+            field = "scenario" if scene["scenario"] is not None else _FIELD.get(given[0], given[0])
+            raise FieldError(
+                field, "applies to one target: several targets are allocated (each group "
+                "in its closed-form formation) without constraints or rotation",
+            )  # fmt: skip
+        return allocation_report(targets, scene["n_uavs"], scene["altitude"], scene["radar"],
+                                 objective=args.objective or "sum")  # fmt: skip
+    if args.objective is not None:
+        raise FieldError("objective", "applies to several targets (--target given twice or more)")
+    if scene["scenario"] is None and all(getattr(args, k) is None for k in _CONSTRAINED):
+        return design_report(scene["n_uavs"], scene["altitude"], targets[0], scene["radar"],
+                             scene["rotation_deg"])  # fmt: skip
+    from .constrained import constrained_report
+
+    return constrained_report(
+        scene["n_uavs"], targets[0], scene["altitude"], scene["radar"],
+        criterion="A" if args.criterion is None else args.criterion,
+        obstacles=scene["obstacles"], no_fly=scene["no_fly"], clearance=scene["clearance"],
+        min_separation=scene["min_separation"], max_radius=args.max_radius,
+        altitude_bands=scene["altitude_bands"], starts=args.starts,
+        seed=0 if args.seed is None else args.seed, rotation_deg=scene["rotation_deg"],
+    )  # fmt: skip
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    from .output import check_output_file, json_text, write_text
+
+    if args.force and args.out is None:
+        raise FieldError("out", "--force replaces the file of -o/--out: give it")
+    if args.out is not None:  # before any work, and nothing written on an error
+        check_output_file(args.out, "out", overwrite=args.force)
+    report = _design_report(args)
+    text = json_text(report)
+    if args.out is not None:
+        write_text(args.out, text)
+    formats = {"constrained": format_constrained, "allocation": format_allocation}
+    print(text if args.json else formats.get(report.get("design", ""), format_design)(report))
+    if args.out is not None and not args.json:
+        print(f"wrote {args.out}")
     return 0
 
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -48,6 +49,7 @@ __all__ = [
     "OBJECTIVES",
     "TargetAllocation",
     "allocate_targets",
+    "allocation_report",
 ]
 
 #: Fewest UAVs serving one target (the design's smallest formation).
@@ -266,3 +268,72 @@ def _allocation(assignment: np.ndarray, targets: np.ndarray, altitude: float, ra
         exhaustive=exhaustive,
         evaluated=evaluated,
     )
+
+
+def allocation_report(
+    targets_xy: ArrayLike,
+    n_uavs: int,
+    altitude: float,
+    radar: Radar = _DEFAULT_RADAR,
+    *,
+    objective: str = "sum",
+    method: str = "auto",
+) -> dict[str, Any]:
+    """:func:`allocate_targets` of a scene and its figures, as a JSON-ready dict.
+
+    What ``crlbswarm design`` prints for two or more targets (a table, or JSON with
+    ``--json``). UAVs and targets are numbered from 1.
+
+    Parameters
+    ----------
+    targets_xy : array_like, shape (K, 2)
+        Target positions, m (as :func:`allocate_targets`, like the parameters below).
+    n_uavs : int
+        Number of UAVs M.
+    altitude : float
+        Flight altitude H, m.
+    radar : Radar, optional
+        Link parameters.
+    objective : {"sum", "max"}, default "sum"
+        Minimise the sum or the largest of the targets' CRLBs.
+    method : {"auto", "exhaustive", "heuristic"}, default "auto"
+        The search.
+
+    Returns
+    -------
+    dict
+        Keys: ``design`` (``"allocation"``), ``n_uavs``, ``altitude_m``, ``targets_m``
+        (K x [x, y]), ``objective``, ``value_m2`` (the sum or the largest of the CRLBs),
+        ``exhaustive`` (every assignment evaluated: the optimum; else the heuristic, a
+        local optimum), ``evaluated``, ``assignment`` (each UAV's target number),
+        ``groups`` (one per target: ``target``, ``target_m``, ``uavs``, ``positions_m``,
+        ``crlb_m2``, ``rmse_bound_m``), ``positions_m`` (every UAV's slot), ``radar``.
+    """
+    alloc = allocate_targets(targets_xy, n_uavs, altitude, radar, objective=objective,
+                             method=method)  # fmt: skip
+    targets = np.asarray(targets_xy, dtype=float)
+    groups = [
+        {
+            "target": k + 1,
+            "target_m": targets[k].tolist(),
+            "uavs": (members + 1).tolist(),
+            "positions_m": alloc.positions[members].tolist(),
+            "crlb_m2": float(alloc.crlb[k]),
+            "rmse_bound_m": float(np.sqrt(alloc.crlb[k])),
+        }
+        for k, members in enumerate(alloc.groups)
+    ]
+    return {
+        "design": "allocation",
+        "n_uavs": int(alloc.assignment.shape[0]),
+        "altitude_m": float(altitude),
+        "targets_m": targets.tolist(),
+        "objective": alloc.objective,
+        "value_m2": alloc.value,
+        "exhaustive": alloc.exhaustive,
+        "evaluated": alloc.evaluated,
+        "assignment": (alloc.assignment.astype(np.int64) + 1).tolist(),
+        "groups": groups,
+        "positions_m": alloc.positions.tolist(),
+        "radar": radar.to_dict(),
+    }

@@ -28,6 +28,7 @@ if TYPE_CHECKING:  # matplotlib is imported only by those who draw
 
 __all__ = [
     "atomic_path",
+    "check_output_file",
     "check_output_folder",
     "json_text",
     "make_output_folder",
@@ -78,6 +79,49 @@ def check_output_folder(
         raise FieldError(field, f"{str(probe)!r} exists and is not a folder")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise FieldError(field, f"cannot write in {str(probe)!r}")
+
+
+def check_output_file(
+    path: str | os.PathLike[str], field: str, *, overwrite: bool = False
+) -> Path:
+    """Fail early, writing nothing, if the file ``path`` could not be written (then write
+    it with :func:`write_json` or :func:`write_text`, atomically).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file (it may not exist yet); its folder must exist.
+    field : str
+        The argument that named it, for the error.
+    overwrite : bool, default False
+        Accept an existing file (the user asked to replace it).
+
+    Returns
+    -------
+    pathlib.Path
+        The file's path.
+
+    Raises
+    ------
+    FieldError
+        If the path is a folder, the file exists and ``overwrite`` is not set, or its
+        folder is missing or not writable.
+    """
+    dest = Path(path)
+    if dest.is_dir():
+        raise FieldError(field, f"{str(dest)!r} is a folder; give a file name")
+    if (dest.exists() or dest.is_symlink()) and not overwrite:
+        raise FieldError(
+            field,
+            f"{str(dest)!r} already exists; choose a new file name, or replace it with "
+            "--force (in Python: overwrite=True)",
+        )
+    folder = dest.parent
+    if not folder.is_dir():
+        raise FieldError(field, f"folder {str(folder)!r} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise FieldError(field, f"cannot write in {str(folder)!r}")
+    return dest
 
 
 def _holds_files(folder: Path) -> bool:
