@@ -47,11 +47,15 @@ from .radar import Radar, check_radar
 
 __all__ = [
     "TargetEstimate",
+    "damped_newton",
     "estimate_target",
     "linearised_estimate",
     "measure_ranges",
     "negative_log_likelihood",
+    "nll_terms",
     "noisy_range",
+    "solve_definite",
+    "wls_terms",
 ]
 
 _DEFAULT_RADAR = Radar()
@@ -264,10 +268,31 @@ class TargetEstimate:
         return ~self.converged
 
 
-def _wls_terms(s, q, d_hat, h2, a, w):
-    """Stage 1: weighted least squares with frozen weights ``w`` = A / d_hat^4.
+def wls_terms(s, q, d_hat, h2, a, w):
+    """Stage 1 of the estimators: weighted least squares on the range residuals with frozen
+    weights ``w`` = A / d_hat^4, for k unknown coordinates (k = 2: the target's horizontal
+    position, its height known; k = 3: its 3-D position).
 
-    Returns ``(cost, gradient, Gauss-Newton Hessian entries, Hessian trace)``.
+    Parameters
+    ----------
+    s : ndarray, shape (n, k)
+        Points, m.
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray or float
+        The known squared offset added to every squared distance, m^2: :math:`H^2`,
+        shape (n, 1), for k = 2; 0 for k = 3.
+    a : ndarray or float
+        :math:`A_m` (unused here).
+    w : ndarray, shape (n, M)
+        The frozen weights.
+
+    Returns
+    -------
+    cost, gradient, hessian, trace : ndarray
+        Shapes (n,), (n, k), (n, k, k) (Gauss-Newton) and (n,) (its trace).
     """
     diff = s[..., None, :] - q
     d = np.sqrt(np.sum(diff * diff, axis=-1) + h2)
@@ -275,16 +300,35 @@ def _wls_terms(s, q, d_hat, h2, a, w):
     u = diff / d[..., None]
     cost = 0.5 * np.sum(w * r * r, axis=-1)
     grad = -np.sum((w * r)[..., None] * u, axis=-2)
-    ux, uy = u[..., 0], u[..., 1]
-    hxx = np.sum(w * ux * ux, axis=-1)
-    hyy = np.sum(w * uy * uy, axis=-1)
-    hxy = np.sum(w * ux * uy, axis=-1)
-    return cost, grad, hxx, hyy, hxy, hxx + hyy
+    hess = np.einsum("nm,nmi,nmj->nij", w, u, u)
+    return cost, grad, hess, np.einsum("nii->n", hess)
 
 
-def _nll_terms(s, q, d_hat, h2, a, w):
-    """Stage 2: the exact negative log-likelihood, its gradient and exact Hessian, and
-    tr J_s for scaling the damping (``w`` unused)."""
+def nll_terms(s, q, d_hat, h2, a, w):
+    """Stage 2 of the estimators: the exact negative log-likelihood (module docstring), its
+    gradient, its exact Hessian, and the trace of the FIM of the k unknowns (eq. (8), to
+    scale the damping), for k = 2 or 3 unknown coordinates as :func:`wls_terms`.
+
+    Parameters
+    ----------
+    s : ndarray, shape (n, k)
+        Points, m.
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray or float
+        Known squared offset of every squared distance, m^2 (:math:`H^2` or 0).
+    a : ndarray or float
+        :math:`A_m`, per UAV (n, M) or one value.
+    w : ndarray
+        Unused (the frozen weights of stage 1).
+
+    Returns
+    -------
+    nll, gradient, hessian, fim_trace : ndarray
+        Shapes (n,), (n, k), (n, k, k) and (n,).
+    """
     diff = s[..., None, :] - q  # s - q_m, so that d d_m / d s = diff / d_m
     d2 = np.sum(diff * diff, axis=-1) + h2
     d = np.sqrt(d2)
@@ -299,30 +343,99 @@ def _nll_terms(s, q, d_hat, h2, a, w):
     grad = np.sum(dl_dd[..., None] * u, axis=-2)
     # Hessian: sum_m l''_m u u^T + l'_m (I - u u^T) / d_m   (d^2 d_m / d s^2 = (I - u u^T)/d)
     c = dl_dd / d
-    ux, uy = u[..., 0], u[..., 1]
-    hxx = np.sum(d2l_dd2 * ux * ux + c * (1.0 - ux * ux), axis=-1)
-    hyy = np.sum(d2l_dd2 * uy * uy + c * (1.0 - uy * uy), axis=-1)
-    hxy = np.sum((d2l_dd2 - c) * ux * uy, axis=-1)
-    fim_trace = np.sum((a * inv_d4 + 8.0 / d2) * (ux * ux + uy * uy), axis=-1)  # tr J_s
-    return nll, grad, hxx, hyy, hxy, fim_trace
+    hess = np.einsum("nm,nmi,nmj->nij", d2l_dd2 - c, u, u)
+    hess += np.sum(c, axis=-1)[:, None, None] * np.eye(s.shape[-1])
+    fim_trace = np.sum((a * inv_d4 + 8.0 / d2) * np.sum(u * u, axis=-1), axis=-1)  # tr J
+    return nll, grad, hess, fim_trace
 
 
-def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
-    """Levenberg-Marquardt-damped Newton minimisation of ``terms`` for every row of ``s``.
+def solve_definite(h: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(h^-1 g, positive definite)`` for a batch of symmetric 2x2 or 3x3 matrices, in
+    closed form (cofactors; Sylvester's criterion for definiteness); the solution of a
+    singular matrix is 0.
 
-    Returns ``(s, cost, converged, iterations, positive_definite)``; ``s`` is updated only by
-    steps that lower the cost, so it stays finite. ``positive_definite`` tells whether the
-    curvature at the final ``s`` is positive definite (a minimum, not a maximum or saddle).
+    Parameters
+    ----------
+    h : ndarray, shape (n, k, k)
+        Symmetric matrices, k = 2 or 3.
+    g : ndarray, shape (n, k)
+        Right-hand sides.
+
+    Returns
+    -------
+    x : ndarray, shape (n, k)
+        The solutions (0 where not finite).
+    definite : ndarray of bool, shape (n,)
+        Whether each matrix is positive definite.
     """
-    n = s.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if h.shape[-1] == 2:
+            a00, a11, a01 = h[:, 0, 0], h[:, 1, 1], h[:, 0, 1]
+            det = a00 * a11 - a01 * a01
+            g0, g1 = g[:, 0], g[:, 1]
+            x = np.stack([(a11 * g0 - a01 * g1) / det, (a00 * g1 - a01 * g0) / det], axis=-1)
+            definite = (det > 0) & (a00 > 0)
+        else:
+            a00, a11, a22 = h[:, 0, 0], h[:, 1, 1], h[:, 2, 2]
+            a01, a02, a12 = h[:, 0, 1], h[:, 0, 2], h[:, 1, 2]
+            c00 = a11 * a22 - a12 * a12
+            c01 = a02 * a12 - a01 * a22
+            c02 = a01 * a12 - a02 * a11
+            c11 = a00 * a22 - a02 * a02
+            c12 = a01 * a02 - a00 * a12
+            c22 = a00 * a11 - a01 * a01
+            det = a00 * c00 + a01 * c01 + a02 * c02
+            g0, g1, g2 = g[:, 0], g[:, 1], g[:, 2]
+            x = np.stack([c00 * g0 + c01 * g1 + c02 * g2, c01 * g0 + c11 * g1 + c12 * g2,
+                          c02 * g0 + c12 * g1 + c22 * g2], axis=-1) / det[:, None]  # fmt: skip
+            definite = (a00 > 0) & (c22 > 0) & (det > 0)
+    return np.where(np.isfinite(x), x, 0.0), definite
+
+
+def damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
+    """Levenberg-Marquardt-damped Newton minimisation of ``terms`` (:func:`wls_terms` or
+    :func:`nll_terms`) for every row of ``s``, with k = 2 or 3 unknowns (the rules of
+    :func:`estimate_target`, module docstring).
+
+    Parameters
+    ----------
+    terms : callable
+        ``terms(s, q, d_hat, h2, a, w) -> (cost, gradient, hessian, trace)``.
+    s : ndarray, shape (n, k)
+        Starting points, m (updated in place and returned).
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray, shape (n, 1), or float
+        Known squared offset of every squared distance, m^2.
+    a : ndarray or float
+        :math:`A_m` (per trial and UAV, or one value).
+    w : ndarray, shape (n, M)
+        Frozen weights of stage 1.
+    n_iter : int
+        Largest number of iterations.
+    tolerance : float
+        Convergence when the nearly undamped step is below ``tolerance`` times (1 m + the
+        distance from the UAVs' centroid).
+
+    Returns
+    -------
+    s, cost, converged, iterations, positive_definite : ndarray
+        ``s`` is updated only by steps that lower the cost, so it stays finite;
+        ``positive_definite`` tells whether the curvature at the final ``s`` is positive
+        definite (a minimum, not a maximum or saddle).
+    """
+    n, k = s.shape
     per = np.ndim(a) > 0
+    per_h = np.ndim(h2) > 0
 
     def at(x, idx):
-        return terms(x, q[idx], d_hat[idx], h2[idx], a[idx] if per else a, w[idx])
+        return terms(x, q[idx], d_hat[idx], h2[idx] if per_h else h2, a[idx] if per else a,
+                     w[idx])  # fmt: skip
 
-    every = np.arange(n)
     centroid = q.mean(axis=1)  # fixed: the convergence scale needs it every iteration
-    cost, grad, hxx, hyy, hxy, htr = at(s, every)
+    cost, grad, hess, htr = at(s, np.arange(n))
     mu = np.full(n, 1e-3)
     active = np.ones(n, dtype=bool)
     converged = np.zeros(n, dtype=bool)
@@ -332,27 +445,20 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         if idx.size == 0:
             break
         iterations[idx] += 1
-        # Damped Newton step: (Hess + mu tr/2 I) delta = -grad, in closed form (2x2).
-        damp = mu[idx] * 0.5 * htr[idx]
-        axx = hxx[idx] + damp
-        ayy = hyy[idx] + damp
-        axy = hxy[idx]
-        det = axx * ayy - axy * axy
-        gx, gy = grad[idx, 0], grad[idx, 1]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            step = -np.stack([(ayy * gx - axy * gy) / det, (axx * gy - axy * gx) / det], axis=-1)
-        step = np.where(np.isfinite(step), step, 0.0)
+        # Damped Newton step: (Hess + mu tr/k I) delta = -grad, in closed form.
+        damped = hess[idx] + (mu[idx] * htr[idx] / k)[:, None, None] * np.eye(k)
+        step, descent = solve_definite(damped, grad[idx])
+        step = -step
         trial = s[idx] + step
-        t_cost, t_grad, t_xx, t_yy, t_xy, t_tr = at(trial, idx)
-        # Accept a step that lowers the cost; a positive definite damped matrix (det > 0,
-        # diagonal > 0) makes the step a descent direction. Where the change of the cost is
-        # at the level of its rounding error, a smaller gradient decides instead, so Newton's
-        # quadratic convergence is not stopped by rounding near the minimum.
-        descent = (det > 0) & (axx > 0)
+        t_cost, t_grad, t_hess, t_tr = at(trial, idx)
+        # Accept a step that lowers the cost; a positive definite damped matrix makes the
+        # step a descent direction. Where the change of the cost is at the level of its
+        # rounding error, a smaller gradient decides instead, so Newton's quadratic
+        # convergence is not stopped by rounding near the minimum.
         # (The cost sums dozens of rounded terms: allow a few thousand ulps.)
         rounding = 1e-12 * (np.abs(cost[idx]) + 1.0)
         flat = np.abs(t_cost - cost[idx]) <= rounding
-        smaller_grad = np.hypot(*t_grad.T) < np.hypot(*grad[idx].T)
+        smaller_grad = np.linalg.norm(t_grad, axis=-1) < np.linalg.norm(grad[idx], axis=-1)
         better = (
             descent
             & np.isfinite(t_cost)
@@ -362,20 +468,19 @@ def _damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         acc = idx[better]
         s[acc] = trial[better]
         cost[acc], grad[acc], htr[acc] = t_cost[better], t_grad[better], t_tr[better]
-        hxx[acc], hyy[acc], hxy[acc] = t_xx[better], t_yy[better], t_xy[better]
+        hess[acc] = t_hess[better]
         mu[acc] = np.maximum(mu[acc] / 10.0, 1e-12)
         rej = idx[~better]
         mu[rej] = mu[rej] * 10.0
-        step_len = np.hypot(step[:, 0], step[:, 1])
-        scale = 1.0 + np.hypot(*(s[idx] - centroid[idx]).T)
+        scale = 1.0 + np.linalg.norm(s[idx] - centroid[idx], axis=-1)
         # Converged when the nearly undamped Newton step is negligible, accepted or not (at
         # that size the change of the cost is below its rounding error). A heavily damped
         # step is short whatever the distance to the minimum, so it never counts.
-        done = (step_len <= tolerance * scale) & near_newton
+        done = (np.linalg.norm(step, axis=-1) <= tolerance * scale) & near_newton
         converged[idx[done]] = True
         active[idx[done]] = False
         active[idx[mu[idx] > 1e12]] = False  # hopeless damping: give up, report failed
-    positive_definite = (hxx > 0) & (hxx * hyy - hxy * hxy > 0)
+    _, positive_definite = solve_definite(hess, grad)
     return s, cost, converged, iterations, positive_definite
 
 
@@ -461,9 +566,9 @@ def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
     w = a_b / d_floor**4
     # Stage 1 only has to land in the basin of the MLE: a loose tolerance saves iterations.
     loose = max(tolerance, 1e-6)
-    s, _, _, it1, _ = _damped_newton(_wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
-    s, nll, converged, it2, minimum = _damped_newton(
-        _nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance
+    s, _, _, it1, _ = damped_newton(wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
+    s, nll, converged, it2, minimum = damped_newton(
+        nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance
     )
     # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
     converged &= minimum

@@ -76,7 +76,14 @@ from .design import (
     optimal_formation as optimal_formation_2d,
 )
 from .errors import FieldError
-from .estimation import TargetEstimate, linearised_estimate, noisy_range
+from .estimation import (
+    TargetEstimate,
+    damped_newton,
+    linearised_estimate,
+    nll_terms,
+    noisy_range,
+    wls_terms,
+)
 from .fisher import SINGULAR_RTOL
 from .geometry import regular_polygon
 from .montecarlo import MonteCarloResult, check_trials, summarise
@@ -811,115 +818,6 @@ def _ranges(measured_ranges: ArrayLike, n_uavs: int) -> np.ndarray:
     return _v.bounded(d, "measured_ranges", -lim, lim, " m")
 
 
-def _sym3(h: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The six distinct entries of symmetric 3x3 matrices ``(..., 3, 3)``."""
-    return h[..., 0, 0], h[..., 1, 1], h[..., 2, 2], h[..., 0, 1], h[..., 0, 2], h[..., 1, 2]
-
-
-def _solve3(h: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(h^-1 g, positive definite)`` for symmetric 3x3 ``h`` by cofactors (Sylvester's
-    criterion for definiteness); steps of singular matrices are 0."""
-    a00, a11, a22, a01, a02, a12 = _sym3(h)
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    g0, g1, g2 = g[..., 0], g[..., 1], g[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        x = np.stack([c00 * g0 + c01 * g1 + c02 * g2, c01 * g0 + c11 * g1 + c12 * g2,
-                      c02 * g0 + c12 * g1 + c22 * g2], axis=-1) / det[..., None]  # fmt: skip
-    return np.where(np.isfinite(x), x, 0.0), (a00 > 0) & (c22 > 0) & (det > 0)
-
-
-def _wls_terms(s, q, d_hat, a, w):
-    """Stage 1: weighted least squares with frozen weights ``w`` = A / d_hat^4: cost,
-    gradient, Gauss-Newton Hessian, its trace."""
-    diff = s[:, None, :] - q
-    d = np.sqrt(np.sum(diff * diff, axis=-1))
-    r = d_hat - d
-    u = diff / d[..., None]
-    cost = 0.5 * np.sum(w * r * r, axis=-1)
-    grad = -np.einsum("nm,nmi->ni", w * r, u)
-    hess = np.einsum("nm,nmi,nmj->nij", w, u, u)
-    return cost, grad, hess, np.einsum("nii->n", hess)
-
-
-def _nll_terms(s, q, d_hat, a, w):
-    """Stage 2: the exact negative log-likelihood (as
-    :func:`crlbswarm.negative_log_likelihood`, 3-D distances), its gradient, its exact
-    Hessian and tr J for scaling the damping (``w`` unused)."""
-    diff = s[:, None, :] - q
-    d2 = np.sum(diff * diff, axis=-1)
-    d = np.sqrt(d2)
-    r = d_hat - d
-    inv_d4 = 1.0 / (d2 * d2)
-    nll = np.sum(np.log(d2) + 0.5 * a * r * r * inv_d4, axis=-1)
-    dl_dd = 2.0 / d - a * r * inv_d4 - 2.0 * a * r * r * inv_d4 / d
-    d2l_dd2 = -2.0 / d2 + a * inv_d4 * (1.0 + 8.0 * r / d + 10.0 * r * r / d2)
-    u = diff / d[..., None]
-    grad = np.einsum("nm,nmi->ni", dl_dd, u)
-    # sum_m l''_m u u^T + l'_m (I - u u^T) / d_m
-    c = dl_dd / d
-    hess = np.einsum("nm,nmi,nmj->nij", d2l_dd2 - c, u, u) + np.sum(c, axis=-1)[
-        :, None, None
-    ] * np.eye(3)
-    fim_trace = np.sum(a * inv_d4 + 8.0 / d2, axis=-1)  # tr J = sum [J_d]_mm
-    return nll, grad, hess, fim_trace
-
-
-def _damped_newton(terms, s, q, d_hat, a, w, n_iter, tolerance):  # long: one loop, as 2-D
-    """Levenberg-Marquardt-damped Newton minimisation of ``terms`` for every row of ``s``,
-    the rules of :func:`crlbswarm.estimate_target` in three unknowns. Returns ``(s, cost,
-    converged, iterations, positive_definite)``."""
-    n = s.shape[0]
-
-    def at(x, idx):
-        return terms(x, q[idx], d_hat[idx], a[idx], w[idx])
-
-    centroid = q.mean(axis=1)
-    cost, grad, hess, htr = at(s, np.arange(n))
-    mu = np.full(n, 1e-3)
-    active = np.ones(n, dtype=bool)
-    converged = np.zeros(n, dtype=bool)
-    iterations = np.zeros(n, dtype=np.int64)
-    for _ in range(n_iter):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        iterations[idx] += 1
-        damped = hess[idx] + (mu[idx] * htr[idx] / 3.0)[:, None, None] * np.eye(3)
-        step, descent = _solve3(damped, grad[idx])
-        step = -step
-        trial = s[idx] + step
-        t_cost, t_grad, t_hess, t_tr = at(trial, idx)
-        rounding = 1e-12 * (np.abs(cost[idx]) + 1.0)
-        flat = np.abs(t_cost - cost[idx]) <= rounding
-        smaller_grad = np.linalg.norm(t_grad, axis=-1) < np.linalg.norm(grad[idx], axis=-1)
-        better = (
-            descent
-            & np.isfinite(t_cost)
-            & ((t_cost < cost[idx] - rounding) | (flat & smaller_grad))
-        )
-        near_newton = mu[idx] <= 1e-2
-        acc = idx[better]
-        s[acc] = trial[better]
-        cost[acc], grad[acc], htr[acc] = t_cost[better], t_grad[better], t_tr[better]
-        hess[acc] = t_hess[better]
-        mu[acc] = np.maximum(mu[acc] / 10.0, 1e-12)
-        rej = idx[~better]
-        mu[rej] = mu[rej] * 10.0
-        scale = 1.0 + np.linalg.norm(s[idx] - centroid[idx], axis=-1)
-        done = (np.linalg.norm(step, axis=-1) <= tolerance * scale) & near_newton
-        converged[idx[done]] = True
-        active[idx[done]] = False
-        active[idx[mu[idx] > 1e12]] = False
-    _, positive_definite = _solve3(hess, grad)
-    return s, cost, converged, iterations, positive_definite
-
-
 def _initial(q: np.ndarray, d_hat: np.ndarray) -> np.ndarray:
     r"""Closed-form start ``(n, 3)``. With the UAVs at 2 or more heights (and not
     coplanar), the linear least squares of :math:`\hat d_m^2 - \lVert\mathbf q_m\rVert^2
@@ -1047,11 +945,11 @@ def _estimate(q, d_hat, a, s0, batch, n_iter, tolerance) -> TargetEstimate:
     d_floor = np.maximum(np.abs(d_hat), 0.1)  # (a range measured near zero: finite weight)
     w = a_b / d_floor**4
     loose = max(tolerance, 1e-6)
-    s, _, _, it1, _ = _damped_newton(_wls_terms, s, q, d_hat, a_b, w, n_iter, loose)
+    s, _, _, it1, _ = damped_newton(wls_terms, s, q, d_hat, 0.0, a_b, w, n_iter, loose)
     above = s[:, 2] > z_low - 0.1  # the other basin: reflect before the exact stage
     s[above, 2] = np.minimum(2.0 * z_mean[above] - s[above, 2], z_low[above] - 0.1)
-    s, nll, converged, it2, minimum = _damped_newton(
-        _nll_terms, s, q, d_hat, a_b, w, n_iter, tolerance
+    s, nll, converged, it2, minimum = damped_newton(
+        nll_terms, s, q, d_hat, 0.0, a_b, w, n_iter, tolerance
     )
     mirror = one_height & (s[:, 2] > z_low)  # exact: the same ranges, the same likelihood
     s[mirror, 2] = 2.0 * z_low[mirror] - s[mirror, 2]
