@@ -24,6 +24,7 @@ MODULES = [
     "crlbswarm.fisher",
     "crlbswarm.design",
     "crlbswarm.constrained",
+    "crlbswarm.multitarget",
     "crlbswarm.formations",
     "crlbswarm.experiments",
     "crlbswarm.plots",

@@ -532,7 +532,7 @@ def run_batch(outs, inps, status, scene, ctl, rule, const):
 # Several targets: one formation per group, one motion step for all (issue 11, item 4)
 # ---------------------------------------------------------------------------------------
 class GroupArrays(NamedTuple):
-    """The groups of a mission with several targets (:mod:`crlbswarm.groups`): the UAVs
+    """The groups of a mission with several targets (:func:`crlbswarm.simulate_groups`): the UAVs
     are ordered so that group g is ``bounds[g] .. bounds[g+1] - 1``.
 
     Parameters

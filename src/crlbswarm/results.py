@@ -140,7 +140,7 @@ class MissionResult:
     def centroid_error(self) -> np.ndarray:
         """Distance from the formation centroid to its place over the (true) target, m,
         shape (B, K+1): the target itself for a regular polygon, else the target plus the
-        formation's centre offset (:attr:`crlbswarm.scenario.FormationDesign.centre_offset`)."""
+        formation's centre offset (:attr:`crlbswarm.scenario.FormationDesign` ``centre_offset``)."""
         offset = self.centroid - self.target - self.scenario.formation_design.centre_offset
         return np.hypot(offset[..., 0], offset[..., 1])
 
@@ -530,7 +530,7 @@ class GroupMissionResult:
     @property
     def metrics(self) -> dict[str, np.ndarray]:
         """Per-run metrics of every group, one row per run and group: the group's index and
-        target, then the columns of :attr:`MissionResult.metrics`."""
+        target, then the columns of each group's ``MissionResult.metrics``."""
         rows: dict[str, list[np.ndarray]] = {}
         for g, group in enumerate(self.groups):
             target = group.scenario.target

@@ -527,7 +527,7 @@ def simulate_groups(
     Returns
     -------
     GroupMissionResult
-        One :class:`MissionResult` per group, and the allocation.
+        One :class:`~crlbswarm.MissionResult` per group, and the allocation.
 
     Raises
     ------
