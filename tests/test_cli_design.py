@@ -17,6 +17,7 @@ from crlbswarm import (
     load_scenario,
 )
 from crlbswarm.cli import main
+from crlbswarm.scenario import Scenario, design_arguments
 
 
 def run(capsys, *argv):
@@ -121,8 +122,9 @@ def test_scenario_gives_the_scene_and_options_override(capsys, tmp_path, source)
     assert data["target_m"] == list(sc.target)
     assert data["altitude_m"] == sc.altitude
     c = data["constraints"]
-    assert c["clearance_m"] == sc.control.safety_radius
-    assert c["min_separation_m"] == sc.safety.min_separation
+    args = design_arguments(sc)  # what the scenario flies when its F* is blocked
+    assert c["clearance_m"] == args["clearance"]
+    assert c["min_separation_m"] == args["min_separation"]
     assert len(c["obstacles"]["rectangles"]) == 2
     over = run_json(capsys, "--scenario", name, "--starts", "2", "--uavs", "4", "--clearance",
                     "2", "--altitude", "30", "--power", "1", "--target", "0,0")  # fmt: skip
@@ -134,9 +136,27 @@ def test_scenario_gives_the_scene_and_options_override(capsys, tmp_path, source)
     assert over["radar"]["noise_power"] == sc.radar_model.noise_power
 
 
-def test_scenario_without_safety_has_no_separation(capsys):
-    data = run_json(capsys, "--scenario", "paper", "--starts", "1")
-    assert data["constraints"]["min_separation_m"] == 0.0
+def test_scenario_design_is_the_one_the_scenario_flies(capsys, tmp_path):
+    """A scenario whose F* is blocked: ``design --scenario`` prints the formation the mission
+    flies (its design arguments: clearance, separation, criterion, max_radius, starts,
+    seed), and a scenario with several targets is allocated over all of them."""
+    data = load_scenario("paper_safe").model_dump()
+    data.update(target=[52.0, 88.0])
+    data["formation"].update(criterion="D", seed=5, max_radius=16.0, starts=4)
+    sc = Scenario.from_dict(data)
+    path = tmp_path / "blocked.toml"
+    path.write_text(sc.to_toml())
+    report = run_json(capsys, "--scenario", str(path))
+    assert report["criterion"] == "D"
+    assert report["constraints"]["max_radius_m"] == 16.0
+    np.testing.assert_array_equal(report["positions_m"], sc.slots)
+    data = load_scenario("paper_safe").model_dump()
+    data.update(obstacles=[], extra_targets=[[200.0, 0.0]])
+    data["uavs"].update(count=7, start_region=[[-15.0, 15.0], [-15.0, 15.0]])
+    path.write_text(Scenario.from_dict(data).to_toml())
+    report = run_json(capsys, "--scenario", str(path))
+    assert report["design"] == "allocation"
+    assert len(report["groups"]) == 2
 
 
 @pytest.mark.parametrize("objective", ["sum", "max"])
@@ -204,7 +224,7 @@ def test_out_writes_the_json_and_refuses_to_overwrite(capsys, tmp_path):
      (["--scenario", "nope"], "--scenario"), (["--objective", "max"], "--objective"),
      (["--target", "0,0", "--target", "1,1", "--objective", "min"], "--objective"),
      (["--target", "0,0", "--target", "1,1", "--max-radius", "9"], "--max-radius"),
-     (["--target", "0,0", "--target", "1,1", "--scenario", "paper"], "--scenario"),
+     (["--target", "0,0", "--target", "1,1", "--rotation", "5"], "--rotation"),
      (["--target", "0,0", "--target", "9,9", "--uavs", "5"], "--uavs"),
      (["--uavs", "501", "--max-radius", "10"], "--uavs"),
      (["--max-radius", "1", "--min-separation", "5", "--starts", "2"], "--min-separation"),

@@ -121,8 +121,8 @@ def test_cli_simulate_flies_the_groups(tmp_path, capsys):
     path.write_text(_scenario().to_toml())
     assert main(["simulate", str(path), "--runs", "2", "--out", str(tmp_path / "o")]) == 0
     out = capsys.readouterr().out
-    assert "group 0: UAVs" in out
-    assert "group 1: UAVs" in out
+    assert "group 0: UAV indices" in out
+    assert "group 1: UAV indices" in out
     assert (tmp_path / "o" / "group1" / "trajectories.npz").is_file()
 
 
@@ -174,3 +174,18 @@ def test_campaigns_refuse_several_targets(tmp_path):
     with pytest.raises(ScenarioError, match="extra_targets: campaigns fly one target"):
         run_campaign(spec, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_overlapping_group_formations_are_refused():
+    """Two targets at the same place: the groups' slots coincide, which no flight can
+    resolve; refused in one line naming the extra target."""
+    with pytest.raises(ScenarioError) as info:
+        _scenario(extra=((60.0, 70.0),))
+    assert info.value.field == "extra_targets.0"
+    assert "overlap" in str(info.value)
+
+
+def test_a_groups_scenario_has_no_single_formation():
+    sc = _scenario()
+    with pytest.raises(FieldError, match="one formation per group"):
+        sc.formation_design

@@ -114,8 +114,9 @@ def test_no_formation_fits_is_refused_in_one_line():
 def test_unequal_uavs_converge_about_their_centre(seed, safety):
     """Unequal UAVs fly a formation whose centre is not the target: the centroid converges
     to the target plus the centre offset, and the CRLB to the design's bound (the attainable
-    optimum, or, when the safety filter is on and two slots of F* are too close, the
-    constrained design that keeps them apart)."""
+    optimum, or, when two slots of F* are too close, the constrained design that keeps them
+    apart: twice the start separation with the safety filter on, else
+    safety.min_separation)."""
     rng = np.random.default_rng(seed)
     power = [float(p) for p in np.round(rng.uniform(0.02, 0.5, 6), 3)]
     sc = _safe(obstacles=[], **{"radar.tx_power": power, "safety.enabled": safety})
@@ -123,14 +124,15 @@ def test_unequal_uavs_converge_about_their_centre(seed, safety):
     assert not design.regular
     best = float(crlb_bound(6, sc.altitude, sc.radar_model))
     if design.method == "constrained":
-        assert safety
         assert "apart" in design.blocked
         assert design.bound >= best * (1 - 1e-9)
     else:
         assert design.bound == best
     result = simulate(sc, seeds=range(3))
-    if safety:  # (without the filter two UAVs of F* may be too close: a collision)
+    if safety:  # (without the filter the paths may cross: a collision on the way)
         assert list(result.metrics["outcome"]) == ["converged"] * 3
+    gaps = np.hypot(*(sc.slots[:, None] - sc.slots[None]).transpose(2, 0, 1))
+    assert np.min(gaps[np.triu_indices(6, 1)]) >= sc.safety.min_separation * (1 - 1e-9)
     assert np.all(result.metrics["final_crlb_ratio"] < 1.001)
     assert result.bound == design.bound
     offset = result.centroid[:, -1] - np.asarray(sc.target)
@@ -144,3 +146,31 @@ def test_regular_polygon_has_no_centre_offset():
         assert design.regular
         assert design.method == "closed form"
         assert np.array_equal(design.centre_offset, np.zeros(2))
+
+
+def test_a_large_blocked_swarm_is_refused_before_searching():
+    """F* of 80 UAVs with the safety filter on has slots closer than twice the start
+    separation: beyond MAX_SCENARIO_DESIGN_UAVS the scenario is refused in one line, at
+    once, instead of a long search at every load."""
+    with pytest.raises(ScenarioError) as info:
+        _safe(obstacles=[], **{"uavs.count": 80, "uavs.start_region": [[-60, 60], [-60, 60]],
+                               "guidance.planner": False})  # fmt: skip
+    message = str(info.value)
+    assert "\n" not in message
+    assert "at most 64 UAVs" in message
+
+
+def test_the_design_is_made_once_per_process(blocked):
+    """Loading the same blocked scenario again reuses its design (same slots)."""
+    from crlbswarm.scenario import _DESIGNS
+
+    assert _DESIGNS
+    again = Scenario.from_dict(blocked.model_dump())
+    assert np.array_equal(again.slots, blocked.slots)
+
+
+@pytest.mark.parametrize("radius", [0.0, 1e-300, -1.0, 1e9, float("nan")])
+def test_max_radius_out_of_range_is_refused_at_the_field(radius):
+    with pytest.raises(ScenarioError) as info:
+        _safe(**{"formation.max_radius": radius})
+    assert info.value.field == "formation.max_radius"

@@ -648,23 +648,32 @@ def _scene(args: argparse.Namespace) -> dict[str, Any]:
         return value if value is not None else (from_scenario if sc is not None else default)
 
     n = pick(args.uavs, sc and sc.uavs.count, 6)
-    obstacles = None
+    # The scenario's own design arguments (what it flies when F* is blocked), if any.
+    given: dict[str, Any] = {}
+    if sc is not None and not sc.extra_targets:
+        from .scenario import design_arguments
+
+        given = design_arguments(sc)
+    obstacles = given.get("obstacles")
     if args.obstacle is not None:
         obstacles = _obstacles(args.obstacle)
-    elif sc is not None and sc.obstacles:
-        obstacles = sc.obstacle_set
-    separation = sc is not None and sc.safety.enabled and sc.safety.min_separation
+    scenario_targets = [list(sc.target), *map(list, sc.extra_targets)] if sc else [[0.0, 0.0]]
     return {
         "scenario": sc,
         "n_uavs": n,
         "altitude": pick(args.altitude, sc and sc.altitude, 20.0),
-        "targets": _targets(args.target) or [list(sc.target) if sc else [0.0, 0.0]],
+        "targets": _targets(args.target) or scenario_targets,
         "rotation_deg": pick(args.rotation, sc and sc.uavs.rotation_deg, 0.0),
         "radar": _radar_from_args(args, sc.radar_model if sc else None),
         "obstacles": obstacles,
         "no_fly": _no_fly(args.no_fly) if args.no_fly is not None else None,
-        "clearance": pick(args.clearance, sc and sc.control.safety_radius, 0.0),
-        "min_separation": pick(args.min_separation, separation or 0.0, 0.0),
+        "clearance": pick(args.clearance, given.get("clearance"), 0.0),
+        "min_separation": pick(args.min_separation, given.get("min_separation"), 0.0),
+        "max_radius": pick(args.max_radius, given.get("max_radius"), None),
+        "criterion": pick(args.criterion, given.get("criterion"), "A"),
+        "starts": pick(args.starts, given.get("starts"), None),
+        "seed": pick(args.seed, given.get("seed"), 0),
+        "objective": pick(args.objective, sc and sc.formation.objective, "sum"),
         "altitude_bands": None if args.altitude_band is None else _bands(args.altitude_band, n),
     }
 
@@ -679,14 +688,14 @@ def _design_report(args: argparse.Namespace) -> dict[str, Any]:
         from .multitarget import allocation_report
 
         given = [k for k in (*_CONSTRAINED, "rotation") if getattr(args, k) is not None]
-        if scene["scenario"] is not None or given:
-            field = "scenario" if scene["scenario"] is not None else _FIELD.get(given[0], given[0])
+        if given:
             raise FieldError(
-                field, "applies to one target: several targets are allocated (each group "
-                "in its closed-form formation) without constraints or rotation",
+                _FIELD.get(given[0], given[0]), "applies to one target: several targets are "
+                "allocated (each group in its closed-form formation) without constraints or "
+                "rotation",
             )  # fmt: skip
         return allocation_report(targets, scene["n_uavs"], scene["altitude"], scene["radar"],
-                                 objective=args.objective or "sum")  # fmt: skip
+                                 objective=scene["objective"])  # fmt: skip
     if args.objective is not None:
         raise FieldError("objective", "applies to several targets (--target given twice or more)")
     if scene["scenario"] is None and all(getattr(args, k) is None for k in _CONSTRAINED):
@@ -696,11 +705,10 @@ def _design_report(args: argparse.Namespace) -> dict[str, Any]:
 
     return constrained_report(
         scene["n_uavs"], targets[0], scene["altitude"], scene["radar"],
-        criterion="A" if args.criterion is None else args.criterion,
-        obstacles=scene["obstacles"], no_fly=scene["no_fly"], clearance=scene["clearance"],
-        min_separation=scene["min_separation"], max_radius=args.max_radius,
-        altitude_bands=scene["altitude_bands"], starts=args.starts,
-        seed=0 if args.seed is None else args.seed, rotation_deg=scene["rotation_deg"],
+        criterion=scene["criterion"], obstacles=scene["obstacles"], no_fly=scene["no_fly"],
+        clearance=scene["clearance"], min_separation=scene["min_separation"],
+        max_radius=scene["max_radius"], altitude_bands=scene["altitude_bands"],
+        starts=scene["starts"], seed=scene["seed"], rotation_deg=scene["rotation_deg"],
     )  # fmt: skip
 
 
@@ -789,13 +797,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             print(f"wrote {path}")
         warned = False
         for g, group in enumerate(grouped.groups):
-            print(f"group {g}: UAVs {grouped.plan.members[g].tolist()} -> target "
+            uavs, leader = grouped.plan.members[g].tolist(), grouped.plan.leaders[g]
+            print(f"group {g}: UAV indices {uavs} (leader {leader}) -> target "
                   f"{list(group.scenario.target)}")  # fmt: skip
             lines = outcome_report(group)
             if lines[-1].startswith("warning:"):
                 lines.pop()
                 warned = True
             print("\n".join("  " + line for line in lines))
+        for group in grouped.groups:
+            for line in preflight(group.scenario):
+                print(f"crlbswarm: warning: {group.scenario.name}: {line}", file=sys.stderr)
         if warned:
             print("crlbswarm: warning: some runs of some groups did not end converged; see "
                   "metrics.csv", file=sys.stderr)  # fmt: skip

@@ -48,7 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from numba import njit
@@ -75,6 +75,7 @@ __all__ = [
     "DISC_VERTICES",
     "MAX_ROADMAP_OBSTACLES",
     "MAX_SCENARIO_STARTS",
+    "MIN_MAX_RADIUS",
     "NODE_MARGIN",
     "FormationConfig",
     "GuidanceConfig",
@@ -101,6 +102,9 @@ NODE_MARGIN = 1e-6
 CLEAR_TOL = 1e-9
 #: Bisection steps on the inflation when :func:`plan_route` looks for the closing passage.
 BISECTION_STEPS = 12
+
+#: Smallest ``formation.max_radius``, m.
+MIN_MAX_RADIUS = 1e-3
 
 #: Most starts of a scenario's constrained design (``formation.starts``): each costs about
 #: :math:`M^3` and the design is made when the scenario is validated.
@@ -876,16 +880,21 @@ class FormationConfig(ConfigModel):
     )
     design: Literal["auto", "closed_form"] = Field(
         "auto",
-        description="auto: F* in closed form, or, if a slot of F* is blocked (within "
-        "control.safety_radius of an obstacle) or beyond max_radius, the best formation that "
-        "fits (constrained design); closed_form: F* only, a blocked F* is refused (the paper)",
+        description="auto: F* in closed form, or, if F* is blocked (a slot within "
+        "control.safety_radius of an obstacle, beyond max_radius, or two slots too close), the "
+        "best formation that fits (constrained design); closed_form: F* only, a blocked F* is "
+        "refused (the paper)",
     )
     criterion: Literal["A", "D", "E"] = Field(
         "A",
         description="criterion of the constrained design: A (CRLB, the paper's), D or E",
     )
-    max_radius: PositiveFloat | None = Field(
-        None, description="largest distance from the target to a slot, m (none by default)"
+    max_radius: (
+        Annotated[float, Field(ge=MIN_MAX_RADIUS, le=_v.MAX_DISTANCE, allow_inf_nan=False)] | None
+    ) = Field(
+        None,
+        description=f"largest distance from the target to a slot, m ({MIN_MAX_RADIUS:g} to "
+        f"{_v.MAX_DISTANCE:g}; none by default)",
     )
     starts: int | None = Field(
         None,

@@ -140,7 +140,8 @@ class MissionResult:
     def centroid_error(self) -> np.ndarray:
         """Distance from the formation centroid to its place over the (true) target, m,
         shape (B, K+1): the target itself for a regular polygon, else the target plus the
-        formation's centre offset (:attr:`crlbswarm.scenario.FormationDesign` ``centre_offset``)."""
+        formation's centre offset (``centre_offset`` of
+        :class:`crlbswarm.scenario.FormationDesign`)."""
         offset = self.centroid - self.target - self.scenario.formation_design.centre_offset
         return np.hypot(offset[..., 0], offset[..., 1])
 

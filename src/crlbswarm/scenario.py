@@ -22,6 +22,7 @@ message names the dotted field.
 
 from __future__ import annotations
 
+import json
 import math
 import typing
 from collections.abc import Iterator, Mapping
@@ -37,7 +38,7 @@ from pydantic import Field, ValidationInfo, create_model, field_validator, model
 from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat, model_to_toml, read_toml, read_toml_file, validate
 from ._validation import MIN_UAVS
-from .constrained import constrained_design
+from .constrained import ConstrainedDesign, constrained_design, default_starts
 from .control import ControlGains, EtaRule
 from .design import crlb_bound, optimal_formation
 from .errors import FieldError, ScenarioError
@@ -53,7 +54,9 @@ from .spatial import min_separation
 
 __all__ = [
     "BUILTIN_SCENARIOS",
+    "DESIGN_CACHE",
     "DESIGN_CLEARANCE",
+    "MAX_SCENARIO_DESIGN_UAVS",
     "CircleObstacle",
     "DisturbanceConfig",
     "EstimationConfig",
@@ -70,9 +73,11 @@ __all__ = [
     "TimeConfig",
     "UavsConfig",
     "builtin_scenario_text",
+    "design_arguments",
     "design_formation",
     "load_scenario",
     "plan_groups",
+    "scenario_starts",
 ]
 
 
@@ -752,11 +757,13 @@ class FormationDesign:
         }
 
 
-def _blocked(sc: Scenario, fstar: np.ndarray) -> tuple[str, str]:
-    """Why :math:`F^*` cannot be flown as it is ("" if it can): a slot within
-    ``control.safety_radius`` of an obstacle (or inside one), beyond
-    ``formation.max_radius``, or, with the safety filter on, two slots closer than twice
-    :attr:`Scenario.start_separation` (unequal UAVs' azimuths may bring two together)."""
+def _blocked(sc: Scenario, fstar: np.ndarray, regular: bool) -> tuple[str, str]:
+    """Why :math:`F^*` cannot be flown as it is ("" if it can), with the field to change: a
+    slot within ``control.safety_radius`` of an obstacle (or inside one), beyond
+    ``formation.max_radius``, two slots closer than twice :attr:`Scenario.start_separation`
+    with the safety filter on (and ``design = "auto"``: else the safety checks refuse it),
+    or, for a formation that is not a regular polygon (unequal UAVs, whose azimuths may
+    bring two together), two slots closer than ``safety.min_separation`` (a collision)."""
     obstacles = sc.obstacle_set
     if obstacles.count:
         clearance = obstacle_clearance(fstar, obstacles)
@@ -774,13 +781,18 @@ def _blocked(sc: Scenario, fstar: np.ndarray) -> tuple[str, str]:
         return "formation.max_radius", (
             f"F* has radius {radius:.4g} m, beyond formation.max_radius = {limit:g} m"
         )
-    if sc.safety.enabled and sc.formation.design == "auto":  # (else refused by the checks)
+    need, why = 0.0, ""
+    if sc.safety.enabled and sc.formation.design == "auto":
         need = 2.0 * sc.start_separation
+        why = "twice the start separation (safety.min_separation and its margin)"
+    elif not regular:
+        need = sc.safety.min_separation
+        why = "safety.min_separation: they would collide"
+    if need > 0.0:
         gap = float(min_separation(np.ascontiguousarray(fstar)))
         if gap < need:
             return "safety.min_separation", (
-                f"two slots of F* are {gap:.4g} m apart, closer than twice the start "
-                f"separation ({need:.4g} m, safety.min_separation and its margin)"
+                f"two slots of F* are {gap:.4g} m apart, closer than {need:.4g} m, {why}"
             )
     return "", ""
 
@@ -800,19 +812,100 @@ _DESIGN_FIELDS = {
     "n_uavs": "uavs.count",
 }
 
+#: Most UAVs of a scenario's constrained design: it runs when the scenario is validated,
+#: and its work grows as M^3 per start (41 UAVs: a few seconds).
+MAX_SCENARIO_DESIGN_UAVS = 64
 
-def design_formation(sc: Scenario) -> FormationDesign:
-    """The formation of a scenario: :math:`F^*` (:func:`crlbswarm.optimal_formation`), or,
-    when it is blocked and ``formation.design = "auto"``, the best formation that fits
-    (:func:`crlbswarm.constrained_design` with the scenario's obstacles, each slot at least
-    ``(1 + DESIGN_CLEARANCE) control.safety_radius`` from them, two slots at least twice
-    :attr:`Scenario.start_separation` apart, ``formation.max_radius``, criterion, starts
-    and seed).
+
+def scenario_starts(n_uavs: int) -> int:
+    """Starts of a scenario's constrained design when ``formation.starts`` is not set:
+    :func:`crlbswarm.constrained.default_starts`, and at most ``16384 / M^2`` (at least
+    2), so the design stays within seconds (6 UAVs: 64 starts; 41: 9; 64: 4).
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of UAVs.
+
+    Returns
+    -------
+    int
+        Number of starts.
+    """
+    return max(2, min(default_starts(n_uavs), 16384 // max(int(n_uavs), 1) ** 2))
+
+
+def design_arguments(sc: Scenario) -> dict[str, Any]:
+    """The arguments of :func:`crlbswarm.constrained_design` with which a scenario's blocked
+    :math:`F^*` is replaced (:func:`design_formation`; ``crlbswarm design --scenario``):
+    its obstacles, every slot at least ``(1 + DESIGN_CLEARANCE) control.safety_radius``
+    from them, two slots at least twice :attr:`Scenario.start_separation` apart,
+    ``formation.max_radius``, ``criterion``, ``starts`` (default :func:`scenario_starts`),
+    ``seed`` and the rotation of ``uavs.rotation_deg``.
 
     Parameters
     ----------
     sc : Scenario
-        The scenario (its fields each valid).
+        The scenario.
+
+    Returns
+    -------
+    dict
+        Keyword arguments (besides ``n_uavs``, ``target_xy``, ``altitude`` and ``radar``).
+    """
+    spec = sc.formation
+    return {
+        "criterion": spec.criterion,
+        "obstacles": sc.obstacle_set if sc.obstacle_set.count else None,
+        "clearance": (1.0 + DESIGN_CLEARANCE) * sc.control.safety_radius,
+        "min_separation": 2.0 * sc.start_separation,
+        "max_radius": spec.max_radius,
+        "starts": scenario_starts(sc.uavs.count) if spec.starts is None else spec.starts,
+        "seed": spec.seed,
+        "rotation": math.radians(sc.uavs.rotation_deg),
+    }
+
+
+def _cached_design(sc: Scenario) -> ConstrainedDesign:
+    """:func:`crlbswarm.constrained_design` with :func:`design_arguments`, remembered for
+    the last scenarios of this process (a scenario is validated again at every load)."""
+    kwargs = design_arguments(sc)
+    obstacles = kwargs["obstacles"]
+    key = json.dumps(
+        [sc.uavs.count, list(sc.target), sc.altitude, sc.radar_model.to_dict(),
+         None if obstacles is None else [obstacles.rectangles.tolist(),
+                                         obstacles.circles.tolist()],
+         {k: v for k, v in kwargs.items() if k != "obstacles"}],
+        sort_keys=True,
+    )  # fmt: skip
+    found = _DESIGNS.get(key)
+    if found is None:
+        found = constrained_design(sc.uavs.count, np.asarray(sc.target, dtype=float),
+                                   sc.altitude, sc.radar_model, **kwargs)  # fmt: skip
+        _DESIGNS[key] = found
+        while len(_DESIGNS) > DESIGN_CACHE:
+            _DESIGNS.pop(next(iter(_DESIGNS)))
+    return found
+
+
+#: Constrained designs remembered per process (:func:`_cached_design`).
+DESIGN_CACHE = 32
+_DESIGNS: dict[str, ConstrainedDesign] = {}
+
+
+def design_formation(sc: Scenario) -> FormationDesign:
+    """The formation of a scenario: :math:`F^*` (:func:`crlbswarm.optimal_formation`), or,
+    when it is blocked and ``formation.design = "auto"``, the best formation that fits
+    (:func:`crlbswarm.constrained_design` with :func:`design_arguments`: the scenario's
+    obstacles, each slot at least ``(1 + DESIGN_CLEARANCE) control.safety_radius`` from
+    them, two slots at least twice :attr:`Scenario.start_separation` apart,
+    ``formation.max_radius``, criterion, starts and seed), for at most
+    :data:`MAX_SCENARIO_DESIGN_UAVS` UAVs.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario (its fields each valid), with one target.
 
     Returns
     -------
@@ -823,35 +916,35 @@ def design_formation(sc: Scenario) -> FormationDesign:
     ------
     FieldError
         If :math:`F^*` is blocked and ``formation.design = "closed_form"``, or no formation
-        fits (one line naming the field to change).
+        fits, or the scenario has extra targets (one formation per group,
+        :attr:`Scenario.group_plan`); one line naming the field to change.
     """
+    if sc.extra_targets:
+        raise FieldError("extra_targets", "a scenario with several targets flies one "
+                         "formation per group: see Scenario.group_plan")  # fmt: skip
     n, target, radar = sc.uavs.count, np.asarray(sc.target, dtype=float), sc.radar_model
     rotation = math.radians(sc.uavs.rotation_deg)
     fstar = optimal_formation(n, target, sc.altitude, radar, rotation=rotation)
     best = float(crlb_bound(n, sc.altitude, radar))
-    field, blocked = _blocked(sc, fstar)
-    spec = sc.formation
+    field, blocked = _blocked(sc, fstar, not radar.per_uav)
     if not blocked:
         fstar.flags.writeable = False
         return FormationDesign(
             slots=fstar, bound=best, unconstrained_bound=best, method="closed form",
             regular=not radar.per_uav, centre_offset=_centre(fstar, target, radar.per_uav),
-            blocked="", criterion=spec.criterion, ratio=1.0, active=(),
+            blocked="", criterion=sc.formation.criterion, ratio=1.0, active=(),
         )  # fmt: skip
-    if spec.design == "closed_form":
+    if sc.formation.design == "closed_form":
         hint = '(formation.design = "auto" flies the best formation that fits)'
         raise FieldError(field, f"{blocked}: the formation could never settle there {hint}")
-    if n > _v.MAX_DESIGN_UAVS:
-        raise FieldError(field, f"{blocked}, and the constrained design takes at most "
-                         f"{_v.MAX_DESIGN_UAVS} UAVs (uavs.count = {n})")  # fmt: skip
-    try:
-        found = constrained_design(
-            n, target, sc.altitude, radar, criterion=spec.criterion,
-            obstacles=sc.obstacle_set if sc.obstacle_set.count else None,
-            clearance=(1.0 + DESIGN_CLEARANCE) * sc.control.safety_radius,
-            min_separation=2.0 * sc.start_separation, max_radius=spec.max_radius,
-            starts=spec.starts, seed=spec.seed, rotation=rotation,
+    if n > MAX_SCENARIO_DESIGN_UAVS:
+        raise FieldError(
+            field, f"{blocked}; a scenario designs another formation for at most "
+            f"{MAX_SCENARIO_DESIGN_UAVS} UAVs (uavs.count = {n}): make F* fit (the UAVs, "
+            "the altitude, the target) or design one with crlbswarm.constrained_design",
         )  # fmt: skip
+    try:
+        found = _cached_design(sc)
     except FieldError as exc:
         raise FieldError(
             _DESIGN_FIELDS.get(exc.field, field),
@@ -940,10 +1033,7 @@ def plan_groups(sc: Scenario) -> GroupPlan:
                         "leader": int(np.flatnonzero(uavs == lead)[0])}  # fmt: skip
         if sc.uavs.start is not None:
             part["uavs"]["start"] = [sc.uavs.start[m] for m in uavs]
-        part["radar"] = {
-            key: [value[m] for m in uavs] if isinstance(value, list) else value
-            for key, value in data["radar"].items()
-        }
+        part["radar"] = sc.radar_model.take(uavs).to_dict()
         part["guidance"] = {**data["guidance"], "planner": False}
         try:
             scenarios.append(Scenario.model_validate(part))

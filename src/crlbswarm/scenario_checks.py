@@ -89,7 +89,24 @@ def _check_groups(scenario: Scenario) -> None:
         raise FieldError("graph.kind", f"with several targets {why}: choose another kind")
     if scenario.safety.enabled:
         _check_starts(scenario)
-    scenario.group_plan  # noqa: B018  (allocates the UAVs and validates every group)
+    plan = scenario.group_plan
+    assert plan is not None  # (extra targets)
+    # The groups' formations must not overlap: slots of two groups as far apart as two
+    # slots of one (each group's own design keeps that within the group).
+    slots = [g.slots for g in plan.scenarios]
+    need = 2.0 * scenario.start_separation if scenario.safety.enabled else (
+        scenario.safety.min_separation)  # fmt: skip
+    for j in range(1, len(slots)):
+        for i in range(j):
+            gaps = np.hypot(*(slots[i][:, None] - slots[j][None]).transpose(2, 0, 1))
+            if gaps.min() < need:
+                field = "target" if i == 0 and j == 0 else f"extra_targets.{j - 1}"
+                raise FieldError(
+                    field,
+                    f"the formations over targets {i} and {j} overlap: two of their slots are "
+                    f"{gaps.min():.4g} m apart, closer than {need:.4g} m; move the targets "
+                    "apart",
+                )
 
 
 def _check_safety(scenario: Scenario) -> None:

@@ -293,24 +293,48 @@ class _ChunkBuffers:
         self.velocities = np.empty((rows, k + 1, m, 2))
 
 
+def _draw_run(sc: Scenario, seed: int, noise: np.ndarray, range_noise: np.ndarray
+              ) -> tuple[np.ndarray, np.random.Generator]:  # fmt: skip
+    """One run's random inputs from its own streams: the start (returned), the standard
+    normal disturbance (into ``noise``), the range noise with sensing in the loop (into
+    ``range_noise``), and the stream of the target's motion (returned)."""
+    start_rng, noise_rng, range_rng, motion_rng = _streams(seed, 4)
+    start = _start(sc, start_rng)
+    noise_rng.standard_normal(out=noise)
+    if sc.estimation.enabled:
+        range_rng.standard_normal(out=range_noise)
+    return start, motion_rng
+
+
+def _slot_offsets(sc: Scenario, start: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Each UAV's slot offset from the formation's centre, after the slot assignment from
+    ``start`` (unequal UAVs: a slot is made for its UAV's radar, so only a UAV of the same
+    kind takes it)."""
+    offsets = sc.slots - centre
+    if sc.formation.assignment != "optimal":
+        return offsets
+    kinds = sc.radar_model.snr_constant if sc.radar_model.per_uav else None
+    return offsets[assign_slots(start, sc.slots, sc.uavs.leader, kinds)]
+
+
+def _diverged(sc: Scenario, run: int, seed: int, step: int) -> SimulationDivergedError:
+    """The error of a run that ran away."""
+    return SimulationDivergedError(
+        f"run {run} (seed {seed}) diverged at step {step} (t = {step * sc.time.step:g} s): "
+        f"NaN or a UAV beyond the model's range (coordinates within +-{DIVERGENCE_LIMIT:g} "
+        "m); check the gains and the disturbance of the scenario"
+    )
+
+
 def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers, pos: np.ndarray) -> Any:
     """Draw each run's start (into ``pos[:, 0]``), disturbance and range noise from its own
     streams, assign the slots of F* (into ``buf.delta``), and the true target trajectories;
     returns the target states (B, K+1, 4)."""
     motion_rngs = []
-    offsets = sc.slots - np.asarray(sc.target) - sc.formation_design.centre_offset
-    # Unequal UAVs: a slot is made for its UAV's radar; only a UAV of the same kind takes it.
-    kinds = sc.radar_model.snr_constant if sc.radar_model.per_uav else None
+    centre = np.asarray(sc.target) + sc.formation_design.centre_offset
     for i, s in enumerate(seeds):
-        start_rng, noise_rng, range_rng, motion_rng = _streams(int(s), 4)
-        pos[i, 0] = _start(sc, start_rng)
-        if sc.formation.assignment == "optimal":
-            buf.delta[i] = offsets[assign_slots(pos[i, 0], sc.slots, sc.uavs.leader, kinds)]
-        else:
-            buf.delta[i] = offsets
-        noise_rng.standard_normal(out=buf.noise[i])
-        if sc.estimation.enabled:
-            range_rng.standard_normal(out=buf.range_noise[i])
+        pos[i, 0], motion_rng = _draw_run(sc, int(s), buf.noise[i], buf.range_noise[i])
+        buf.delta[i] = _slot_offsets(sc, pos[i, 0], centre)
         motion_rngs.append(motion_rng)
     buf.noise[: len(seeds)] *= sc.disturbance.sigma
     motion = sc.target_motion
@@ -348,14 +372,7 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
     run_batch(tuple(outs), tuple(inps), status, *kernel_args)
     bad = np.flatnonzero(status >= 0)
     if bad.size:
-        b = lo + int(bad[0])
-        step = int(status[bad[0]])
-        raise SimulationDivergedError(
-            f"run {b} (seed {seeds[bad[0]]}) diverged at step {step} "
-            f"(t = {step * sc.time.step:g} s): NaN or a UAV beyond the model's range "
-            f"(coordinates within +-{DIVERGENCE_LIMIT:g} m); check the gains and the "
-            "disturbance of the scenario"
-        )
+        raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
     radar = sc.radar_model
     batch.target[lo:hi] = truth[..., :2]
     batch.crlb[lo:hi] = crlb(pos, batch.target[lo:hi], sc.altitude, radar)
@@ -546,8 +563,16 @@ def simulate_groups(
     if plan is None:
         raise FieldError("scenario", "has one target (no extra_targets): use simulate")
     k_steps, m_uavs = sc.time.steps, sc.uavs.count
-    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, True)
+    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories)
     n_runs, n_groups = seed_arr.shape[0], len(plan.members)
+    # The whole batch at once: positions, velocities and disturbance of every UAV and step,
+    # the groups' copies when the trajectories are kept, and the CRLB's temporaries (~6).
+    per_value = 8.0 * n_runs * (k_steps + 1) * m_uavs * 2
+    _v.check_memory(
+        per_value * (3 + (2 if keep_trajectories else 0) + 3), "seeds" if n_runs > 1 else
+        "scenario", f"{n_runs} runs of {k_steps} steps with {m_uavs} UAVs (several targets)",
+        "use fewer runs per call, or fewer UAVs or steps",
+    )  # fmt: skip
     scene, ctl, rule, const, groups = _group_arguments(sc)
     order = np.concatenate(plan.members)  # group order: row i is UAV order[i] of the swarm
     k1 = k_steps + 1
@@ -556,19 +581,12 @@ def simulate_groups(
     noise = np.empty((n_runs, k_steps, m_uavs, 2))
     delta = np.empty((n_runs, m_uavs, 2))
     for i, s in enumerate(seed_arr):
-        start_rng, noise_rng = _streams(int(s), 4)[:2]
-        start = _start(sc, start_rng)
-        noise_rng.standard_normal(out=noise[i])
+        start, _ = _draw_run(sc, int(s), noise[i], np.empty(m_uavs))  # (no range noise)
         noise[i] = noise[i][:, order]
         q[i, 0] = start[order]
         for g, gsc in enumerate(plan.scenarios):
             lo, hi = groups.bounds[g], groups.bounds[g + 1]
-            offsets = gsc.slots - groups.goals[g]
-            if gsc.formation.assignment == "optimal":
-                kinds = gsc.radar_model.snr_constant if gsc.radar_model.per_uav else None
-                offsets = offsets[assign_slots(q[i, 0, lo:hi], gsc.slots, gsc.uavs.leader,
-                                               kinds)]  # fmt: skip
-            delta[i, lo:hi] = offsets
+            delta[i, lo:hi] = _slot_offsets(gsc, q[i, 0, lo:hi], groups.goals[g])
     noise *= sc.disturbance.sigma
     outs = GroupOutputs(
         q, v, np.empty((n_runs, k1, n_groups, 2)), np.ones((n_runs, k1, n_groups)),
@@ -582,12 +600,7 @@ def simulate_groups(
     run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups)
     bad = np.flatnonzero(status >= 0)
     if bad.size:
-        step = int(status[bad[0]])
-        raise SimulationDivergedError(
-            f"run {int(bad[0])} (seed {seed_arr[bad[0]]}) diverged at step {step} "
-            f"(t = {step * sc.time.step:g} s): NaN or a UAV beyond the model's range; check "
-            "the gains and the disturbance of the scenario"
-        )
+        raise _diverged(sc, int(bad[0]), int(seed_arr[bad[0]]), int(status[bad[0]]))
     time = np.arange(k1) * sc.time.step
     results = []
     for g, gsc in enumerate(plan.scenarios):
