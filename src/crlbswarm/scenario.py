@@ -888,7 +888,8 @@ def _cached_design(sc: Scenario) -> ConstrainedDesign:
     return found
 
 
-#: Constrained designs remembered per process (:func:`_cached_design`).
+#: Constrained designs remembered per process (the last ones; a scenario is validated
+#: again at every load, and its design is made once).
 DESIGN_CACHE = 32
 _DESIGNS: dict[str, ConstrainedDesign] = {}
 
