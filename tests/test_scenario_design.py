@@ -174,3 +174,11 @@ def test_max_radius_out_of_range_is_refused_at_the_field(radius):
     with pytest.raises(ScenarioError) as info:
         _safe(**{"formation.max_radius": radius})
     assert info.value.field == "formation.max_radius"
+
+
+def test_too_many_starts_for_a_large_blocked_swarm_are_refused():
+    with pytest.raises(ScenarioError) as info:
+        _safe(obstacles=[], **{"uavs.count": 41, "uavs.start_region": [[-40, 40], [-40, 40]],
+                               "guidance.planner": False, "formation.starts": 500})  # fmt: skip
+    assert info.value.field == "formation.starts"
+    assert "at most 144 starts" in str(info.value)

@@ -46,7 +46,13 @@ from .fisher import crlb
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph
 from .multitarget import TargetAllocation, allocate_targets
 from .obstacles import Obstacles, obstacle_clearance
-from .planning import FormationConfig, GuidanceConfig, Roadmap, build_roadmap
+from .planning import (
+    MAX_SCENARIO_STARTS,
+    FormationConfig,
+    GuidanceConfig,
+    Roadmap,
+    build_roadmap,
+)
 from .radar import Radar, radar_parameters
 from .safety import SafetyConfig, disturbance_margins
 from .scenario_checks import check_scenario
@@ -938,6 +944,12 @@ def design_formation(sc: Scenario) -> FormationDesign:
     if sc.formation.design == "closed_form":
         hint = '(formation.design = "auto" flies the best formation that fits)'
         raise FieldError(field, f"{blocked}: the formation could never settle there {hint}")
+    most = 16 * scenario_starts(n) if n > 16 else MAX_SCENARIO_STARTS
+    if sc.formation.starts is not None and sc.formation.starts > most:
+        raise FieldError(
+            "formation.starts", f"{blocked}; at most {most} starts for {n} UAVs in a scenario "
+            f"(the design runs when the scenario is loaded), got {sc.formation.starts}",
+        )  # fmt: skip
     if n > MAX_SCENARIO_DESIGN_UAVS:
         raise FieldError(
             field, f"{blocked}; a scenario designs another formation for at most "
