@@ -35,8 +35,13 @@ def swarm_scenario(n: int, steps: int) -> cs.Scenario:
             "altitude": altitude,
             "target": [0.0, 0.0],
             "uavs": {"count": n, "start_region": [[-side / 2, side / 2], [-side / 2, side / 2]]},
-            "time": {"step": 0.1, "duration": 0.1 * steps},
+            # (hold: the convergence window must be shorter than these short missions)
+            "time": {"step": 0.1, "duration": 0.1 * steps, "hold": 0.05 * steps},
             "graph": {"kind": "ring"},
+            # The paper's controller (new scenarios fly with the safety layers on).
+            "safety": {"enabled": False},
+            "guidance": {"planner": False},
+            "formation": {"assignment": "index", "design": "closed_form"},
             "obstacles": [
                 {"type": "circle", "center": c.tolist(), "radius": 3.0} for c in centres
             ],
