@@ -8,6 +8,7 @@ array (the caller's own array when it already is one, so callers copy before wri
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -45,6 +46,8 @@ def as_float_array(value: object, name: str) -> np.ndarray:
         raise FieldError(name, f"expected numbers, got booleans {short(value)}")
     if kind not in "iufO":
         raise FieldError(name, f"expected numbers, got {short(value)}")
+    if raw.dtype == np.float64:  # nothing to convert (the hot path)
+        return np.asarray(raw)
     if kind == "O" and any(
         isinstance(x, str | bytes | bool | np.bool_ | complex | np.complexfloating)
         for x in raw.flat
@@ -66,7 +69,7 @@ def short(value: object, limit: int = 60) -> str:
 
 def check_finite(arr: np.ndarray, name: str) -> np.ndarray:
     """Raise if ``arr`` holds NaN or infinity."""
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise FieldError(name, "must be finite (found NaN or inf)")
     return arr
 
@@ -124,6 +127,9 @@ def count(value: object, name: str, minimum: int, maximum: int | None = None) ->
 
 def broadcast(name: str, *shapes: tuple[int, ...]) -> tuple[int, ...]:
     """Broadcast shapes or raise a ``ValueError`` naming the argument ``name``."""
+    given = [tuple(s) for s in shapes if len(s)]
+    if all(s == given[0] for s in given[1:]):  # equal or scalar shapes (the hot path)
+        return given[0] if given else ()
     try:
         return np.broadcast_shapes(*shapes)
     except ValueError as exc:
@@ -336,6 +342,10 @@ def check_memory(nbytes: float, name: str, what: str, hint: str = "") -> None:
 # -- checks against the model's range ------------------------------------------------------
 def bounded(arr: np.ndarray, name: str, low: float, high: float, unit: str) -> np.ndarray:
     """Refuse entries of ``arr`` outside ``[low, high]`` (after the finiteness check)."""
+    if arr.size:  # the hot path: one pass for the extremes (NaN propagates into them)
+        lo, hi = arr.min(), arr.max()
+        if low <= lo and hi <= high and math.isfinite(lo) and math.isfinite(hi):
+            return arr
     check_finite(arr, name)
     if arr.size and not (np.all(arr >= low) and np.all(arr <= high)):
         bad = arr[(arr < low) | (arr > high)].flat[0]
@@ -397,7 +407,7 @@ def finite_result(result: np.ndarray, name: str, reason: str) -> np.ndarray:
     The safety net of the public functions: inside the model's ranges their results are
     finite; an argument whose range is not declared (a gain) may still make them overflow,
     and the error then names that argument, with ``reason``."""
-    if not np.all(np.isfinite(result)):
+    if not np.isfinite(result).all():
         raise FieldError(name, reason)
     return result
 

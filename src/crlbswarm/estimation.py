@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import vectorize
+from numba import njit, vectorize
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
@@ -72,6 +72,16 @@ def _ranges_array(measured_ranges: ArrayLike, n_uavs: int) -> np.ndarray:
         )
     lim = _v.MAX_MEASURED_RANGE
     return _v.bounded(d, "measured_ranges", -lim, lim, " m")
+
+
+def _check_uavs(uav_xy: ArrayLike, altitude: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """``check_scene`` without a target: the UAV positions and the altitude, checked."""
+    q = _v.coordinates(uav_xy, "uav_xy")
+    h = _v.altitude(altitude, "altitude")
+    batch = _v.broadcast("altitude", q.shape[:-2], h.shape)
+    n = float(np.prod(batch, dtype=float)) * q.shape[-2]
+    _v.check_elements(n, "uav_xy", f"{n:.3g} UAV-target pairs", copies=8)
+    return q, h
 
 
 @vectorize(cache=True)
@@ -208,36 +218,123 @@ def linearised_estimate(
         Estimate, m. Where the system is singular (collinear UAVs) the UAVs' centroid is
         returned; the result is never NaN.
     """
-    q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
+    q, h = _check_uavs(uav_xy, altitude)
     if q.shape[-2] < 3:
         raise FieldError(
             "uav_xy", f"the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
         )
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
-    # Singular systems (collinear UAVs) and absurd ranges fall back to the centroid; the
-    # warnings numpy would raise on the way are expected, so they are silenced.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _linearised(q, d_hat, h)
+    return _linearised(q, d_hat, h)
 
 
 def _linearised(q: np.ndarray, d_hat: np.ndarray, h: np.ndarray) -> np.ndarray:
-    center = q.mean(axis=-2)
-    qc = q - center[..., None, :]
-    rows = np.concatenate([-2.0 * qc, np.ones((*qc.shape[:-1], 1))], axis=-1)  # (..., M, 3)
-    rhs = d_hat * d_hat - np.sum(qc * qc, axis=-1) - (h * h)[..., None]
-    shape = np.broadcast_shapes(rows.shape[:-2], rhs.shape[:-1])
-    rows = np.broadcast_to(rows, (*shape, *rows.shape[-2:]))
-    rhs = np.broadcast_to(rhs, (*shape, rhs.shape[-1]))
-    normal = np.einsum("...mi,...mj->...ij", rows, rows)
-    moment = np.einsum("...mi,...m->...i", rows, rhs)
-    det = np.linalg.det(normal)
-    scale = np.einsum("...ii->...", normal) ** 3
-    ok = np.abs(det) > 1e-12 * scale
-    safe = np.where(ok[..., None, None], normal, np.eye(3))
-    sol = np.linalg.solve(safe, np.where(np.isfinite(moment), moment, 0.0)[..., None])[..., 0]
-    ok &= np.all(np.isfinite(sol), axis=-1) & np.all(np.isfinite(moment), axis=-1)
-    est = np.where(ok[..., None], sol[..., :2], 0.0)
-    return np.broadcast_to(center, est.shape) + est
+    """:func:`linearised_estimate` of checked arrays: broadcast to one batch, then
+    :func:`_linearised_batch` trial by trial."""
+    m_uavs = q.shape[-2]
+    batch = _v.broadcast("measured_ranges", q.shape[:-2], d_hat.shape[:-1], h.shape)
+    out = np.empty((*batch, 2))
+    _linearised_batch(
+        _batch_array(q, batch, (m_uavs, 2)),
+        _batch_array(d_hat, batch, (m_uavs,)),
+        _batch_array(h * h, batch),
+        out.reshape(-1, 2),
+    )
+    return out
+
+
+def _batch_array(x: ArrayLike, batch: tuple[int, ...], tail: tuple[int, ...] = ()) -> np.ndarray:
+    """``x`` broadcast to ``batch + tail`` with the batch axes flattened into one, as a
+    C-contiguous writable float64 array (the one array type the compiled loops take)."""
+    shape = (*batch, *tail)
+    if isinstance(x, np.ndarray) and x.shape == shape:
+        arr = x.reshape(-1, *tail)
+    elif np.ndim(x) == 0:
+        return np.full((math.prod(batch), *tail), x, dtype=np.float64)
+    else:
+        arr = np.broadcast_to(x, shape).reshape(-1, *tail)
+    if arr.dtype == np.float64 and arr.flags.c_contiguous and arr.flags.writeable:
+        return arr
+    return np.array(arr, dtype=np.float64, order="C")
+
+
+@njit(cache=True, error_model="numpy")
+def _linearised_batch(q, d_hat, h2, out):
+    """The closed-form start of :func:`linearised_estimate`, one trial after the other
+    (:func:`_linearised_trial`)."""
+    work = np.empty((5, 3))
+    for i in range(q.shape[0]):
+        _linearised_trial(q[i], d_hat[i], h2[i], out[i], work)
+
+
+@njit(cache=True, error_model="numpy")
+def _linearised_trial(q, d_hat, h2, out, work):
+    """One trial of :func:`linearised_estimate` into ``out`` (shape (2,)): the normal
+    equations of the linear system in (s_x, s_y, R) on coordinates centred on the UAVs'
+    mean, solved by Gaussian elimination with partial pivoting; the centroid where the
+    system is singular (``|det| <= 1e-12 tr^3``) or anything is not finite. ``work``: (5, 3)
+    scratch."""
+    normal, moment, row = work[0:3], work[3], work[4]
+    m_uavs = q.shape[0]
+    cx = q[0, 0]
+    cy = q[0, 1]
+    for m in range(1, m_uavs):
+        cx += q[m, 0]
+        cy += q[m, 1]
+    cx /= m_uavs
+    cy /= m_uavs
+    for r in range(3):
+        moment[r] = 0.0
+        for c in range(3):
+            normal[r, c] = 0.0
+    for m in range(m_uavs):
+        x = q[m, 0] - cx
+        y = q[m, 1] - cy
+        row[0] = -2.0 * x
+        row[1] = -2.0 * y
+        row[2] = 1.0
+        rhs = d_hat[m] * d_hat[m] - (x * x + y * y) - h2
+        for r in range(3):
+            moment[r] += row[r] * rhs
+            for c in range(3):
+                normal[r, c] += row[r] * row[c]
+    scale = (normal[0, 0] + normal[1, 1] + normal[2, 2]) ** 3
+    ok = True
+    for r in range(3):
+        ok = ok and math.isfinite(moment[r])
+    det = 1.0
+    if ok:
+        for c in range(3):  # elimination with partial pivoting, on normal and moment
+            piv = c
+            for r in range(c + 1, 3):
+                if abs(normal[r, c]) > abs(normal[piv, c]):
+                    piv = r
+            if piv != c:
+                det = -det
+                for j in range(3):
+                    normal[c, j], normal[piv, j] = normal[piv, j], normal[c, j]
+                moment[c], moment[piv] = moment[piv], moment[c]
+            det *= normal[c, c]
+            if normal[c, c] == 0.0:
+                break
+            for r in range(c + 1, 3):
+                f = normal[r, c] / normal[c, c]
+                for j in range(c, 3):
+                    normal[r, j] -= f * normal[c, j]
+                moment[r] -= f * moment[c]
+        ok = abs(det) > 1e-12 * scale
+    sx = 0.0
+    sy = 0.0
+    if ok:
+        for c in range(2, -1, -1):
+            acc = moment[c]
+            for j in range(c + 1, 3):
+                acc -= normal[c, j] * moment[j]
+            moment[c] = acc / normal[c, c]
+        if math.isfinite(moment[0]) and math.isfinite(moment[1]) and math.isfinite(moment[2]):
+            sx = moment[0]
+            sy = moment[1]
+    out[0] = cx + sx
+    out[1] = cy + sy
 
 
 @dataclass(frozen=True, eq=False)
@@ -425,7 +522,16 @@ def damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
         ``s`` is updated only by steps that lower the cost, so it stays finite;
         ``positive_definite`` tells whether the curvature at the final ``s`` is positive
         definite (a minimum, not a maximum or saddle).
+
+    Notes
+    -----
+    With :func:`wls_terms` or :func:`nll_terms` the iteration runs compiled, one trial at a
+    time (:func:`_newton_batch`: the same rules, sums over the UAVs in order), so a trial's
+    result does not depend on its batch; any other ``terms`` runs the NumPy loop below, all
+    trials together.
     """
+    if terms is wls_terms or terms is nll_terms:
+        return _compiled_newton(terms is nll_terms, s, q, d_hat, h2, a, w, n_iter, tolerance)
     n, k = s.shape
     per = np.ndim(a) > 0
     per_h = np.ndim(h2) > 0
@@ -484,6 +590,228 @@ def damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
     return s, cost, converged, iterations, positive_definite
 
 
+def _compiled_newton(exact, s, q, d_hat, h2, a, w, n_iter, tolerance):
+    """:func:`damped_newton` of :func:`wls_terms` (``exact`` False) or :func:`nll_terms`
+    (True) by the compiled :func:`_newton_batch`; the arguments are brought to one array
+    type (C-contiguous, writable float64) so that a single specialisation is compiled."""
+    n, k = s.shape
+    m_uavs = q.shape[1]
+    s_out = _batch_array(s, (n,), (k,))
+    cost = np.empty(n)
+    converged = np.empty(n, dtype=np.bool_)
+    iterations = np.empty(n, dtype=np.int64)
+    definite = np.empty(n, dtype=np.bool_)
+    h2_b = _batch_array(np.reshape(h2, (-1,)) if np.ndim(h2) else h2, (n,))
+    _newton_batch(exact, s_out, _batch_array(q, (n,), (m_uavs, k)),
+                  _batch_array(d_hat, (n,), (m_uavs,)), h2_b, _batch_array(a, (n,), (m_uavs,)),
+                  _batch_array(w, (n,), (m_uavs,)), int(n_iter), float(tolerance), cost,
+                  converged, iterations, definite)  # fmt: skip
+    if s_out is not s:
+        s[...] = s_out
+    return s, cost, converged, iterations, definite
+
+
+@njit(cache=True)
+def _newton_work():
+    """Scratch of :func:`_newton_trial`: six 3-vectors and three 3x3 matrices."""
+    return np.zeros((15, 3))
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_batch(exact, s, q, d_hat, h2, a, w, n_iter, tolerance, cost_out, conv_out, it_out,
+                  pd_out):  # fmt: skip
+    """The damped Newton of :func:`damped_newton`, one trial after the other; results into
+    ``s`` (in place) and the ``*_out`` arrays. Scratch is allocated once per batch."""
+    work = _newton_work()
+    for i in range(s.shape[0]):
+        cost_out[i], conv_out[i], it_out[i], pd_out[i] = _newton_trial(
+            exact, s[i], q[i], d_hat[i], h2[i], a[i], w[i], n_iter, tolerance, work
+        )
+
+
+@njit(cache=True, error_model="numpy")
+def _mle_batch(q, d_hat, h2, a, w, s, start, n_iter, tolerance, nll_out, conv_out, it_out):
+    """Both stages of :func:`estimate_target` for every trial, one after the other: the
+    closed-form start (unless ``start`` is False: ``s`` holds the starts), stage 1
+    (weighted least squares with the frozen weights ``w``, loose tolerance), stage 2 (the
+    exact likelihood). Results into ``s`` (in place) and the ``*_out`` arrays."""
+    work = _newton_work()
+    lin = np.empty((5, 3))
+    loose = max(tolerance, 1e-6)  # stage 1 only has to land in the basin of the MLE
+    for i in range(s.shape[0]):
+        qi, di, ai, wi, si = q[i], d_hat[i], a[i], w[i], s[i]
+        if start:
+            _linearised_trial(qi, di, h2[i], si, lin)
+        _, _, it1, _ = _newton_trial(False, si, qi, di, h2[i], ai, wi, n_iter, loose, work)
+        nll, converged, it2, minimum = _newton_trial(
+            True, si, qi, di, h2[i], ai, wi, n_iter, tolerance, work
+        )
+        nll_out[i] = nll
+        # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
+        conv_out[i] = converged and minimum
+        it_out[i] = it1 + it2
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_trial(exact, s, q, d_hat, h2, a, w, n_iter, tolerance, work):
+    """One trial of :func:`damped_newton` (``s`` updated in place); returns ``(cost,
+    converged, iterations, positive definite)``. ``work``: :func:`_newton_work`."""
+    k = s.shape[0]
+    grad, t_grad, trial, step, centroid, u = work[0], work[1], work[2], work[3], work[4], work[5]
+    hess, t_hess, damped = work[6:9], work[9:12], work[12:15]
+    m_uavs = q.shape[0]
+    for j in range(k):  # fixed: the convergence scale needs it every iteration
+        acc = q[0, j]
+        for m in range(1, m_uavs):
+            acc += q[m, j]
+        centroid[j] = acc / m_uavs
+    cost, htr = _terms(exact, s, q, d_hat, h2, a, w, grad, hess, u, k)
+    mu = 1e-3
+    converged = False
+    iterations = 0
+    for _ in range(n_iter):
+        iterations += 1
+        # Damped Newton step: (Hess + mu tr/k I) delta = -grad, in closed form.
+        lam = mu * htr / k
+        for r in range(k):
+            for c in range(k):
+                damped[r, c] = hess[r, c] + lam * (1.0 if r == c else 0.0)
+        descent = _solve_definite(damped, grad, step, k)
+        for j in range(k):
+            step[j] = -step[j]
+            trial[j] = s[j] + step[j]
+        t_cost, t_tr = _terms(exact, trial, q, d_hat, h2, a, w, t_grad, t_hess, u, k)
+        # Accept a step that lowers the cost (see damped_newton); where the change of the
+        # cost is at the level of its rounding error, a smaller gradient decides instead.
+        rounding = 1e-12 * (abs(cost) + 1.0)
+        flat = abs(t_cost - cost) <= rounding
+        smaller_grad = _norm(t_grad, k) < _norm(grad, k)
+        better = (
+            descent
+            and math.isfinite(t_cost)
+            and ((t_cost < cost - rounding) or (flat and smaller_grad))
+        )
+        near_newton = mu <= 1e-2
+        if better:
+            for r in range(k):
+                s[r] = trial[r]
+                grad[r] = t_grad[r]
+                for c in range(k):
+                    hess[r, c] = t_hess[r, c]
+            cost, htr = t_cost, t_tr
+            mu = max(mu / 10.0, 1e-12)
+        else:
+            mu = mu * 10.0
+        acc = 0.0
+        for j in range(k):
+            acc += (s[j] - centroid[j]) ** 2
+        scale = 1.0 + math.sqrt(acc)
+        # Converged when the nearly undamped Newton step is negligible, accepted or not.
+        if _norm(step, k) <= tolerance * scale and near_newton:
+            converged = True
+            break
+        if mu > 1e12:  # hopeless damping: give up, report failed
+            break
+    return cost, converged, iterations, _solve_definite(hess, grad, step, k)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _norm(x, k):
+    acc = 0.0
+    for j in range(k):
+        acc += x[j] * x[j]
+    return math.sqrt(acc)
+
+
+@njit(cache=True, error_model="numpy")
+def _terms(exact, s, q, d_hat, h2, a, w, grad, hess, u, k):
+    """One trial's cost, gradient, Hessian and trace: :func:`nll_terms` (``exact``) or
+    :func:`wls_terms`, in scalar form, for the first ``k`` coordinates of ``s``, sums over
+    the UAVs in order (``u``: scratch)."""
+    for r in range(k):
+        grad[r] = 0.0
+        for c in range(k):
+            hess[r, c] = 0.0
+    cost = 0.0
+    extra = 0.0  # sum of the terms l'_m / d_m (nll) added to the diagonal
+    trace = 0.0
+    for m in range(q.shape[0]):
+        d2 = 0.0
+        for j in range(k):
+            u[j] = s[j] - q[m, j]  # s - q_m, so that d d_m / d s = diff / d_m
+            d2 += u[j] * u[j]
+        d2 += h2
+        d = math.sqrt(d2)
+        r = d_hat[m] - d
+        uu = 0.0
+        for j in range(k):
+            u[j] = u[j] / d
+            uu += u[j] * u[j]
+        if exact:
+            am = a[m]
+            inv_d4 = 1.0 / (d2 * d2)
+            cost += math.log(d2) + 0.5 * am * r * r * inv_d4
+            # d nll / d d_m = 2/d - A r / d^4 - 2 A r^2 / d^5
+            dl_dd = 2.0 / d - am * r * inv_d4 - 2.0 * am * r * r * inv_d4 / d
+            # d^2 nll / d d_m^2 = -2/d^2 + A/d^4 + 8 A r/d^5 + 10 A r^2/d^6
+            d2l_dd2 = -2.0 / d2 + am * inv_d4 * (1.0 + 8.0 * r / d + 10.0 * r * r / d2)
+            # Hessian: sum_m l''_m u u^T + l'_m (I - u u^T) / d_m
+            c_m = dl_dd / d
+            g_m = d2l_dd2 - c_m
+            for i in range(k):
+                grad[i] += dl_dd * u[i]
+                for j in range(k):
+                    hess[i, j] += g_m * u[i] * u[j]
+            extra += c_m
+            trace += (am * inv_d4 + 8.0 / d2) * uu  # tr J of eq. (8)
+        else:
+            wm = w[m]
+            cost += wm * r * r
+            for i in range(k):
+                grad[i] -= wm * r * u[i]
+                for j in range(k):
+                    hess[i, j] += wm * u[i] * u[j]
+    if exact:
+        for i in range(k):
+            hess[i, i] += extra
+        return cost, trace
+    for i in range(k):
+        trace += hess[i, i]
+    return 0.5 * cost, trace
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_definite(h, g, x, k):
+    """:func:`solve_definite` of one symmetric k x k matrix (k = 2 or 3) into ``x``;
+    returns whether ``h`` is positive definite."""
+    if k == 2:
+        a00, a11, a01 = h[0, 0], h[1, 1], h[0, 1]
+        det = a00 * a11 - a01 * a01
+        g0, g1 = g[0], g[1]
+        x[0] = (a11 * g0 - a01 * g1) / det
+        x[1] = (a00 * g1 - a01 * g0) / det
+        definite = det > 0 and a00 > 0
+    else:
+        a00, a11, a22 = h[0, 0], h[1, 1], h[2, 2]
+        a01, a02, a12 = h[0, 1], h[0, 2], h[1, 2]
+        c00 = a11 * a22 - a12 * a12
+        c01 = a02 * a12 - a01 * a22
+        c02 = a01 * a12 - a02 * a11
+        c11 = a00 * a22 - a02 * a02
+        c12 = a01 * a02 - a00 * a12
+        c22 = a00 * a11 - a01 * a01
+        det = a00 * c00 + a01 * c01 + a02 * c02
+        g0, g1, g2 = g[0], g[1], g[2]
+        x[0] = (c00 * g0 + c01 * g1 + c02 * g2) / det
+        x[1] = (c01 * g0 + c11 * g1 + c12 * g2) / det
+        x[2] = (c02 * g0 + c12 * g1 + c22 * g2) / det
+        definite = a00 > 0 and c22 > 0 and det > 0
+    for j in range(k):
+        if not math.isfinite(x[j]):
+            x[j] = 0.0
+    return definite
+
+
 def estimate_target(
     uav_xy: ArrayLike,
     measured_ranges: ArrayLike,
@@ -497,7 +825,8 @@ def estimate_target(
     r"""Maximum-likelihood estimate of the target from the ranges, for a batch of trials.
 
     Two stages, each a Levenberg-Marquardt-damped Newton iteration with its own damping per
-    trial, all trials advanced together with NumPy:
+    trial, compiled and run one trial after the other (a trial's result does not depend on
+    the batch it is in):
 
     1. weighted least squares on the range residuals with the weights frozen at
        :math:`A_m/\hat d_m^4` (Gauss-Newton curvature), from ``init``. Its cost grows with
@@ -533,18 +862,21 @@ def estimate_target(
         Estimates, convergence flags, iterations (both stages) and the final negative
         log-likelihood.
     """
-    q, _, h = check_scene(uav_xy, np.zeros(2), altitude)
+    q, h = _check_uavs(uav_xy, altitude)
     a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
     n_iter = _v.count(max_iter, "max_iter", 1, MAX_ITERATIONS)
     tolerance = _v.scalar(tol, "tol")
     if not tolerance > 0:
         raise FieldError("tol", f"must be > 0, got {tolerance!r}")
-    s0 = linearised_estimate(q, d_hat, h) if init is None else _v.location(init, "init")
+    if init is None and q.shape[-2] < 3:
+        raise FieldError(
+            "uav_xy", f"the linearised estimate needs at least 3 UAVs, got {q.shape[-2]}"
+        )
+    s0 = None if init is None else _v.location(init, "init")
     # Absurd inputs (ranges whose squares overflow) make the costs infinite: every step is
-    # then rejected and the trial is reported as failed, without a warning.
-    with np.errstate(over="ignore", invalid="ignore"):
-        est = _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
+    # then rejected and the trial is reported as failed (compiled: no warning).
+    est = _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
     reason = "so far from the ranges the geometry can produce that the likelihood overflows"
     _v.finite_result(est.position, "measured_ranges", reason)
     _v.finite_result(est.nll, "measured_ranges", reason)
@@ -552,29 +884,26 @@ def estimate_target(
 
 
 def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
+    """Both stages for every trial, compiled (:func:`_mle_batch`), from ``s0`` or (None)
+    the closed-form start of :func:`linearised_estimate`."""
     batch = _v.broadcast("measured_ranges", q.shape[:-2], d_hat.shape[:-1])
     batch = _v.broadcast("altitude", batch, h.shape)
-    batch = _v.broadcast("init", batch, s0.shape[:-1])
+    s = np.empty((*batch, 2))
+    if s0 is not None:
+        batch = _v.broadcast("init", batch, s0.shape[:-1])
+        s = np.array(np.broadcast_to(s0, (*batch, 2)), dtype=np.float64, order="C")
     m_uavs = q.shape[-2]
-    q = np.broadcast_to(q, (*batch, m_uavs, 2)).reshape(-1, m_uavs, 2)
-    d_hat = np.broadcast_to(d_hat, (*batch, m_uavs)).reshape(-1, m_uavs)
-    h2 = np.broadcast_to(h * h, batch).reshape(-1, 1)
-    s = np.broadcast_to(s0, (*batch, 2)).reshape(-1, 2).copy()
-    a_b = a if np.ndim(a) == 0 else np.broadcast_to(a, d_hat.shape)
-    # Frozen weights of stage 1; a range measured near zero (absurd SNR) gets a finite weight.
-    d_floor = np.maximum(np.abs(d_hat), np.sqrt(h2))
-    w = a_b / d_floor**4
-    # Stage 1 only has to land in the basin of the MLE: a loose tolerance saves iterations.
-    loose = max(tolerance, 1e-6)
-    s, _, _, it1, _ = damped_newton(wls_terms, s, q, d_hat, h2, a_b, w, n_iter, loose)
-    s, nll, converged, it2, minimum = damped_newton(
-        nll_terms, s, q, d_hat, h2, a_b, w, n_iter, tolerance
-    )
-    # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
-    converged &= minimum
-    return TargetEstimate(
-        position=s.reshape(*batch, 2),
-        converged=converged.reshape(batch),
-        iterations=(it1 + it2).reshape(batch),
-        nll=nll.reshape(batch),
-    )
+    nll = np.empty(batch)
+    converged = np.empty(batch, dtype=np.bool_)
+    iterations = np.empty(batch, dtype=np.int64)
+    d_b = _batch_array(d_hat, batch, (m_uavs,))
+    h2 = _batch_array(h * h, batch)
+    a_b = _batch_array(a, batch, (m_uavs,))
+    # Frozen weights of stage 1 (NumPy's power, as before); a range measured near zero
+    # (absurd SNR) gets a finite weight.
+    with np.errstate(over="ignore"):
+        w = a_b / np.maximum(np.abs(d_b), np.sqrt(h2)[:, None]) ** 4
+    _mle_batch(_batch_array(q, batch, (m_uavs, 2)), d_b, h2, a_b, w, s.reshape(-1, 2),
+               s0 is None, n_iter, tolerance, nll.reshape(-1), converged.reshape(-1),
+               iterations.reshape(-1))  # fmt: skip
+    return TargetEstimate(position=s, converged=converged, iterations=iterations, nll=nll)

@@ -53,7 +53,7 @@ from .obstacles import clearance_at, repulsion_at
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
 from .spatial import min_separation
-from .tracking import predict, update
+from .tracking import filter_work, predict_into, update_into
 
 __all__ = [
     "CARROT_BISECTIONS",
@@ -280,16 +280,17 @@ class RunOutputs(NamedTuple):
 
 
 @njit(cache=True)
-def sense_target(q, s_true, z, x, p_cov, ranges, const):
+def sense_target(q, s_true, z, x, p_cov, ranges, const, work):
     """Step 0: the UAVs measure their ranges to the true target (eq. (2), the range model
-    of :func:`crlbswarm.estimation.noisy_range`) and the filter fuses them
-    (:func:`crlbswarm.tracking.update`). Returns the updated ``(x, P)``."""
+    of :func:`crlbswarm.estimation.noisy_range`) and the filter fuses them in place
+    (:func:`crlbswarm.tracking.update_into`, scratch ``work``). Returns ``(x, P)``."""
     h2 = const.altitude * const.altitude
     for m in range(q.shape[0]):
         dx = s_true[0] - q[m, 0]
         dy = s_true[1] - q[m, 1]
         ranges[m] = noisy_range(dx * dx + dy * dy + h2, const.snr_constant, z[m])
-    return update(x, p_cov, q, ranges, const.altitude, const.snr_constant, FILTER_ITERATIONS)
+    update_into(x, p_cov, q, ranges, const.altitude, const.snr_constant, FILTER_ITERATIONS, work)
+    return x, p_cov
 
 
 @njit(cache=True)
@@ -451,6 +452,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
     node = -1  # the route's current node (re-planned every replan_every steps)
     x = inp.x0.copy()
     p_cov = scene.p0.copy()
+    f_work = filter_work()
     moving = x.shape[0] == 4
     for k in range(k_steps + 1):
         q = out.q[k]
@@ -459,7 +461,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
         if const.estimate:
             if k % const.measure_every == 0:
                 x, p_cov = sense_target(q, inp.target[k], inp.range_noise[k], x, p_cov, ranges,
-                                        const)  # fmt: skip
+                                        const, f_work)  # fmt: skip
             sx, sy = x[0], x[1]
             tvx, tvy = (x[2], x[3]) if moving else (0.0, 0.0)
             out.estimate[k, 0] = sx
@@ -510,7 +512,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
                             b_work):  # fmt: skip
             return k + 1
         if const.estimate:  # Step 3: prediction with the target's motion model.
-            x, p_cov = predict(x, p_cov, scene.f_mat, scene.q_mat)
+            predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
 
 

@@ -865,7 +865,7 @@ def estimate_target_3d(
     squares with frozen weights :math:`A_m/\hat d_m^4`, then the exact negative
     log-likelihood :math:`\sum_m [2\ln d_m + A_m(\hat d_m - d_m)^2/(2d_m^4)]` with its exact
     :math:`3\times 3` Hessian, each a Levenberg-Marquardt-damped Newton iteration (damping
-    scaled by :math:`\operatorname{tr}\mathbf J/3`), all trials advanced together.
+    scaled by :math:`\operatorname{tr}\mathbf J/3`), compiled, one trial after the other.
 
     The mirror ambiguity: UAVs all at one height :math:`H` measure the same ranges from a
     target at :math:`z` and from its reflection :math:`2H - z`, so the likelihood has two

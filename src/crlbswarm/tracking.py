@@ -51,12 +51,15 @@ from .fisher import fisher_information
 from .radar import Radar
 
 __all__ = [
+    "filter_work",
     "motion_matrices",
     "posterior_crlb",
     "predict",
+    "predict_into",
     "summed_range_information",
     "target_trajectories",
     "update",
+    "update_into",
 ]
 
 
@@ -310,24 +313,99 @@ def posterior_crlb(
         np.linalg.cholesky(p0[:n, :n])
     except np.linalg.LinAlgError as exc:
         raise FieldError("p0", "the prior covariance must be positive definite") from exc
-    measure_every = every
-    fk, qk = f[:n, :n], q[:n, :n]
     out = np.empty(steps)
-    try:
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            info = np.linalg.inv(p0[:n, :n])
-            for k in range(steps):
-                if k > 0:
-                    info = np.linalg.inv(qk + fk @ np.linalg.inv(info) @ fk.T)
-                if k % measure_every == 0:
-                    info = info.copy()
-                    info[:2, :2] += fim[k]
-                out[k] = np.trace(np.linalg.inv(info)[:2, :2])
-    except np.linalg.LinAlgError as exc:
-        raise FieldError("q", "the predicted information Q + F J^-1 F^T is singular") from exc
+    if not _pcrb(
+        np.require(fim, np.float64, ("C", "W")),
+        np.require(f, np.float64, ("C", "W")),
+        np.require(q, np.float64, ("C", "W")),
+        np.require(p0, np.float64, ("C", "W")),
+        n,
+        every,
+        out,
+    ):
+        raise FieldError("q", "the predicted information Q + F J^-1 F^T is singular")
     return _v.finite_result(
         out, "p0", "the bound over- or underflows: f, q, p0 or mean_fim out of range"
     )
+
+
+@njit(cache=True, error_model="numpy")
+def _pcrb(fim, f, q, p0, n, every, out):
+    """The recursion of :func:`posterior_crlb` (n x n blocks of the 4 x 4 ``f``, ``q``,
+    ``p0``; the bound of step k into ``out[k]``), allocation-free inside the loop. False if
+    a matrix to invert is exactly singular (as :func:`numpy.linalg.inv` refuses)."""
+    info = np.empty((4, 4))
+    cov = np.empty((4, 4))
+    fc = np.empty((4, 4))
+    lu = np.empty((4, 4))
+    col = np.empty(4)
+    perm = np.empty(4, dtype=np.int64)
+    if not _lu_inverse(p0, n, info, lu, col, perm):
+        return False
+    for k in range(fim.shape[0]):
+        if k > 0:
+            # info = (Q + F info^-1 F^T)^-1, with cov = info^-1 from the step before
+            for r in range(n):
+                for c in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += f[r, j] * cov[j, c]
+                    fc[r, c] = acc
+            for r in range(n):
+                for c in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += fc[r, j] * f[c, j]
+                    cov[r, c] = q[r, c] + acc
+            if not _lu_inverse(cov, n, info, lu, col, perm):
+                return False
+        if k % every == 0:
+            for r in range(2):
+                for c in range(2):
+                    info[r, c] += fim[k, r, c]
+        if not _lu_inverse(info, n, cov, lu, col, perm):
+            return False
+        out[k] = cov[0, 0] + cov[1, 1]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _lu_inverse(a, n, out, lu, col, perm):
+    """Inverse of the n x n block of ``a`` into ``out`` by an LU factorisation with partial
+    pivoting (``lu``, ``col``, ``perm``: scratch). False if a pivot is exactly zero."""
+    for r in range(n):
+        perm[r] = r
+        for c in range(n):
+            lu[r, c] = a[r, c]
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(lu[r, c]) > abs(lu[piv, c]):
+                piv = r
+        if lu[piv, c] == 0.0:
+            return False
+        if piv != c:
+            for j in range(n):
+                lu[c, j], lu[piv, j] = lu[piv, j], lu[c, j]
+            perm[c], perm[piv] = perm[piv], perm[c]
+        for r in range(c + 1, n):
+            lu[r, c] /= lu[c, c]
+            for j in range(c + 1, n):
+                lu[r, j] -= lu[r, c] * lu[c, j]
+    for j in range(n):
+        for r in range(n):  # forward substitution with the permuted unit vector
+            acc = 1.0 if perm[r] == j else 0.0
+            for i in range(r):
+                acc -= lu[r, i] * col[i]
+            col[r] = acc
+        for r in range(n - 1, -1, -1):
+            acc = col[r]
+            for i in range(r + 1, n):
+                acc -= lu[r, i] * col[i]
+            col[r] = acc / lu[r, r]
+        for r in range(n):
+            out[r, j] = col[r]
+    return True
 
 
 #: Largest magnitude of an entry of the matrices :func:`posterior_crlb` takes.
@@ -344,8 +422,22 @@ def _matrix(value: object, name: str, n_state: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------
-# The filter: Kalman prediction and iterated-EKF range update, as pure compiled functions
+# The filter: Kalman prediction and iterated-EKF range update, as compiled functions. The
+# mission kernel calls the in-place forms (``predict_into``/``update_into``) with a work
+# array allocated once per run, so the hot path allocates nothing; ``predict``/``update``
+# return new arrays and leave their inputs alone.
 # ---------------------------------------------------------------------------------------
+#: Number of (4, 4) scratch matrices of :func:`filter_work`.
+FILTER_WORK = 6
+
+
+@njit(cache=True)
+def filter_work():
+    """Scratch space of :func:`predict_into` and :func:`update_into` (any state size up
+    to 4): allocate once, reuse for every step."""
+    return np.empty((FILTER_WORK, 4, 4))
+
+
 @njit(cache=True)
 def predict(x, P, F, Q):
     r"""Kalman prediction with the target's motion model.
@@ -353,7 +445,8 @@ def predict(x, P, F, Q):
     .. math:: \mathbf x^- = \mathbf F \mathbf x, \qquad
               \mathbf P^- = \mathbf F \mathbf P \mathbf F^\top + \mathbf Q
 
-    Compiled (called by the mission kernel every step); no input checks.
+    Compiled; no input checks. Returns new arrays (:func:`predict_into` is the in-place,
+    allocation-free form the mission kernel calls every step).
 
     Parameters
     ----------
@@ -373,24 +466,38 @@ def predict(x, P, F, Q):
     P : ndarray, shape (n, n)
         Predicted covariance.
     """
+    x_new = x.copy()
+    p_new = P.copy()
+    predict_into(x_new, p_new, F, Q, filter_work())
+    return x_new, p_new
+
+
+@njit(cache=True)
+def predict_into(x, P, F, Q, work):
+    """:func:`predict` in place: ``x`` and ``P`` (shapes (n,) and (n, n), n <= 4) are
+    overwritten by the prediction; ``work`` from :func:`filter_work`. Allocates nothing."""
     n = x.shape[0]
-    x_new = np.zeros(n)
+    x_new = work[0, 0]
+    fp = work[1]
+    for r in range(n):
+        acc = 0.0
+        for c in range(n):
+            acc += F[r, c] * x[c]
+        x_new[r] = acc
     for r in range(n):
         for c in range(n):
-            x_new[r] += F[r, c] * x[c]
-    fp = np.zeros((n, n))
-    for r in range(n):
-        for c in range(n):
+            acc = 0.0
             for j in range(n):
-                fp[r, c] += F[r, j] * P[j, c]
-    p_new = np.empty((n, n))
+                acc += F[r, j] * P[j, c]
+            fp[r, c] = acc
     for r in range(n):
         for c in range(n):
             acc = Q[r, c]
             for j in range(n):
                 acc += fp[r, j] * F[c, j]
-            p_new[r, c] = acc
-    return x_new, p_new
+            P[r, c] = acc
+    for r in range(n):
+        x[r] = x_new[r]
 
 
 @njit(cache=True)
@@ -408,7 +515,8 @@ def update(x, P, uav_xy, ranges, altitude, snr_constant, n_iter):
 
     with :math:`\mathbf H_i` the Jacobian of the ranges (horizontal line-of-sight unit
     vectors, eq. (4); zero in the velocity columns). The updated covariance is the inverse
-    of the last information matrix. Compiled (called by the mission kernel); no checks.
+    of the last information matrix. Compiled; no checks. Returns new arrays
+    (:func:`update_into` is the in-place, allocation-free form the mission kernel calls).
 
     Parameters
     ----------
@@ -435,18 +543,38 @@ def update(x, P, uav_xy, ranges, altitude, snr_constant, n_iter):
     P : ndarray, shape (n, n)
         Updated covariance.
     """
+    x_new = x.copy()
+    p_new = P.copy()
+    update_into(x_new, p_new, uav_xy, ranges, altitude, snr_constant, n_iter, filter_work())
+    return x_new, p_new
+
+
+@njit(cache=True)
+def update_into(x, P, uav_xy, ranges, altitude, snr_constant, n_iter, work):
+    """:func:`update` in place: ``x`` and ``P`` (shapes (n,) and (n, n), n <= 4) are
+    overwritten by the updated state and covariance; ``work`` from :func:`filter_work`.
+    Allocates nothing."""
     n = x.shape[0]
-    info0 = _inverse_small(P, n)
-    xi = x.copy()
-    info = np.zeros((n, n))
+    info0 = work[0]
+    info = work[1]
+    lu = work[2]  # the elimination's matrix
+    xi = work[3, 0]
+    rhs = work[3, 1]
+    step = work[3, 2]
+    _inverse_into(P, n, info0, lu)
+    for r in range(n):
+        xi[r] = x[r]
     h2 = altitude * altitude
     for _ in range(n_iter):
-        info[:, :] = info0
-        rhs = np.zeros(n)
-        # - P^-1 (x_i - x_prior)
         for r in range(n):
             for c in range(n):
-                rhs[r] -= info0[r, c] * (xi[c] - x[c])
+                info[r, c] = info0[r, c]
+        # - P^-1 (x_i - x_prior)
+        for r in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc -= info0[r, c] * (xi[c] - x[c])
+            rhs[r] = acc
         for m in range(uav_xy.shape[0]):
             dx = xi[0] - uav_xy[m, 0]
             dy = xi[1] - uav_xy[m, 1]
@@ -462,17 +590,22 @@ def update(x, P, uav_xy, ranges, altitude, snr_constant, n_iter):
             info[1, 1] += w * hy * hy
             rhs[0] += w * hx * res
             rhs[1] += w * hy * res
-        step = _solve_small(info, rhs, n)
+        _solve_into(info, rhs, n, lu, step)
         for r in range(n):
             xi[r] += step[r]
-    return xi, _inverse_small(info, n)
+    for r in range(n):
+        x[r] = xi[r]
+    _inverse_into(info, n, P, lu)
 
 
 @njit(cache=True)
-def _solve_small(a, b, n):
-    """Solve the n x n system a x = b (n <= 4) by Gaussian elimination with pivoting."""
-    m = a[:n, :n].copy()
-    x = b[:n].copy()
+def _solve_into(a, b, n, m, x):
+    """Solve the n x n system a x = b (n <= 4) by Gaussian elimination with pivoting, into
+    ``x`` (``m``: scratch of at least n x n; ``a`` and ``b`` are left alone)."""
+    for r in range(n):
+        for c in range(n):
+            m[r, c] = a[r, c]
+        x[r] = b[r]
     for c in range(n):
         piv = c
         for r in range(c + 1, n):
@@ -492,18 +625,36 @@ def _solve_small(a, b, n):
         for j in range(c + 1, n):
             acc -= m[c, j] * x[j]
         x[c] = acc / m[c, c]
-    return x
 
 
 @njit(cache=True)
-def _inverse_small(a, n):
-    """Inverse of the n x n matrix a (n <= 4), column by column with :func:`_solve_small`."""
-    out = np.zeros((n, n))
-    e = np.zeros(n)
+def _inverse_into(a, n, out, m):
+    """Inverse of the n x n matrix a (n <= 4) into ``out`` (which must not share memory
+    with ``a``): the elimination of :func:`_solve_into` done once, on all n unit vectors
+    together (the same operations on each column as n separate solves, so the same bits);
+    ``m`` is scratch."""
+    for r in range(n):
+        for c in range(n):
+            m[r, c] = a[r, c]
+            out[r, c] = 1.0 if r == c else 0.0
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(m[r, c]) > abs(m[piv, c]):
+                piv = r
+        if piv != c:
+            for j in range(n):
+                m[c, j], m[piv, j] = m[piv, j], m[c, j]
+                out[c, j], out[piv, j] = out[piv, j], out[c, j]
+        for r in range(c + 1, n):
+            f = m[r, c] / m[c, c]
+            for j in range(c, n):
+                m[r, j] -= f * m[c, j]
+            for j in range(n):
+                out[r, j] -= f * out[c, j]
     for j in range(n):
-        e[:] = 0.0
-        e[j] = 1.0
-        col = _solve_small(a, e, n)
-        for i in range(n):
-            out[i, j] = col[i]
-    return out
+        for c in range(n - 1, -1, -1):
+            acc = out[c, j]
+            for i in range(c + 1, n):
+                acc -= m[c, i] * out[i, j]
+            out[c, j] = acc / m[c, c]
