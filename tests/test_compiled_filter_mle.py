@@ -6,8 +6,8 @@
 * ``posterior_crlb`` against the previous NumPy loop (``numpy.linalg.inv`` on every step),
   transcribed below: equal to rounding;
 * the MLE: a trial's estimate does not depend on its batch (bit-identical alone and inside
-  any batch), and the compiled damped Newton follows the rules of the NumPy loop that
-  ``damped_newton`` runs for any other ``terms`` callable.
+  any batch), and the compiled damped Newton follows the rules of a NumPy transcription
+  (all trials at once) kept below as the reference.
 """
 
 from __future__ import annotations
@@ -246,20 +246,244 @@ def test_estimate_target_3d_does_not_depend_on_the_batch():
             np.testing.assert_array_equal(a, b[i])
 
 
+# -- the NumPy transcription of the damped Newton (the estimators' rules, all trials at
+# once): an independent reference for the compiled loop of crlbswarm.estimation --------------
+def ref_wls_terms(s, q, d_hat, h2, a, w):
+    """Stage 1 of the estimators: weighted least squares on the range residuals with frozen
+    weights ``w`` = A / d_hat^4, for k unknown coordinates (k = 2: the target's horizontal
+    position, its height known; k = 3: its 3-D position).
+
+    Parameters
+    ----------
+    s : ndarray, shape (n, k)
+        Points, m.
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray or float
+        The known squared offset added to every squared distance, m^2: :math:`H^2`,
+        shape (n, 1), for k = 2; 0 for k = 3.
+    a : ndarray or float
+        :math:`A_m` (unused here).
+    w : ndarray, shape (n, M)
+        The frozen weights.
+
+    Returns
+    -------
+    cost, gradient, hessian, trace : ndarray
+        Shapes (n,), (n, k), (n, k, k) (Gauss-Newton) and (n,) (its trace).
+    """
+    diff = s[..., None, :] - q
+    d = np.sqrt(np.sum(diff * diff, axis=-1) + h2)
+    r = d_hat - d
+    u = diff / d[..., None]
+    cost = 0.5 * np.sum(w * r * r, axis=-1)
+    grad = -np.sum((w * r)[..., None] * u, axis=-2)
+    hess = np.einsum("nm,nmi,nmj->nij", w, u, u)
+    return cost, grad, hess, np.einsum("nii->n", hess)
+
+
+def ref_nll_terms(s, q, d_hat, h2, a, w):
+    """Stage 2 of the estimators: the exact negative log-likelihood (module docstring), its
+    gradient, its exact Hessian, and the trace of the FIM of the k unknowns (eq. (8), to
+    scale the damping), for k = 2 or 3 unknown coordinates as :func:`wls_terms`.
+
+    Parameters
+    ----------
+    s : ndarray, shape (n, k)
+        Points, m.
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray or float
+        Known squared offset of every squared distance, m^2 (:math:`H^2` or 0).
+    a : ndarray or float
+        :math:`A_m`, per UAV (n, M) or one value.
+    w : ndarray
+        Unused (the frozen weights of stage 1).
+
+    Returns
+    -------
+    nll, gradient, hessian, fim_trace : ndarray
+        Shapes (n,), (n, k), (n, k, k) and (n,).
+    """
+    diff = s[..., None, :] - q  # s - q_m, so that d d_m / d s = diff / d_m
+    d2 = np.sum(diff * diff, axis=-1) + h2
+    d = np.sqrt(d2)
+    r = d_hat - d
+    inv_d4 = 1.0 / (d2 * d2)
+    nll = np.sum(np.log(d2) + 0.5 * a * r * r * inv_d4, axis=-1)
+    # d nll / d d_m = 2/d - A r / d^4 - 2 A r^2 / d^5
+    dl_dd = 2.0 / d - a * r * inv_d4 - 2.0 * a * r * r * inv_d4 / d
+    # d^2 nll / d d_m^2 = -2/d^2 + A/d^4 + 8 A r/d^5 + 10 A r^2/d^6
+    d2l_dd2 = -2.0 / d2 + a * inv_d4 * (1.0 + 8.0 * r / d + 10.0 * r * r / d2)
+    u = diff / d[..., None]
+    grad = np.sum(dl_dd[..., None] * u, axis=-2)
+    # Hessian: sum_m l''_m u u^T + l'_m (I - u u^T) / d_m   (d^2 d_m / d s^2 = (I - u u^T)/d)
+    c = dl_dd / d
+    hess = np.einsum("nm,nmi,nmj->nij", d2l_dd2 - c, u, u)
+    hess += np.sum(c, axis=-1)[:, None, None] * np.eye(s.shape[-1])
+    fim_trace = np.sum((a * inv_d4 + 8.0 / d2) * np.sum(u * u, axis=-1), axis=-1)  # tr J
+    return nll, grad, hess, fim_trace
+
+
+def ref_solve_definite(h: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(h^-1 g, positive definite)`` for a batch of symmetric 2x2 or 3x3 matrices, in
+    closed form (cofactors; Sylvester's criterion for definiteness); the solution of a
+    singular matrix is 0.
+
+    Parameters
+    ----------
+    h : ndarray, shape (n, k, k)
+        Symmetric matrices, k = 2 or 3.
+    g : ndarray, shape (n, k)
+        Right-hand sides.
+
+    Returns
+    -------
+    x : ndarray, shape (n, k)
+        The solutions (0 where not finite).
+    definite : ndarray of bool, shape (n,)
+        Whether each matrix is positive definite.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if h.shape[-1] == 2:
+            a00, a11, a01 = h[:, 0, 0], h[:, 1, 1], h[:, 0, 1]
+            det = a00 * a11 - a01 * a01
+            g0, g1 = g[:, 0], g[:, 1]
+            x = np.stack([(a11 * g0 - a01 * g1) / det, (a00 * g1 - a01 * g0) / det], axis=-1)
+            definite = (det > 0) & (a00 > 0)
+        else:
+            a00, a11, a22 = h[:, 0, 0], h[:, 1, 1], h[:, 2, 2]
+            a01, a02, a12 = h[:, 0, 1], h[:, 0, 2], h[:, 1, 2]
+            c00 = a11 * a22 - a12 * a12
+            c01 = a02 * a12 - a01 * a22
+            c02 = a01 * a12 - a02 * a11
+            c11 = a00 * a22 - a02 * a02
+            c12 = a01 * a02 - a00 * a12
+            c22 = a00 * a11 - a01 * a01
+            det = a00 * c00 + a01 * c01 + a02 * c02
+            g0, g1, g2 = g[:, 0], g[:, 1], g[:, 2]
+            x = np.stack([c00 * g0 + c01 * g1 + c02 * g2, c01 * g0 + c11 * g1 + c12 * g2,
+                          c02 * g0 + c12 * g1 + c22 * g2], axis=-1) / det[:, None]  # fmt: skip
+            definite = (a00 > 0) & (c22 > 0) & (det > 0)
+    return np.where(np.isfinite(x), x, 0.0), definite
+
+
+def ref_damped_newton(terms, s, q, d_hat, h2, a, w, n_iter, tolerance):
+    """Levenberg-Marquardt-damped Newton minimisation of ``terms`` (:func:`wls_terms` or
+    :func:`nll_terms`) for every row of ``s``, with k = 2 or 3 unknowns (the rules of
+    :func:`estimate_target`, module docstring).
+
+    Parameters
+    ----------
+    terms : callable
+        ``terms(s, q, d_hat, h2, a, w) -> (cost, gradient, hessian, trace)``.
+    s : ndarray, shape (n, k)
+        Starting points, m (updated in place and returned).
+    q : ndarray, shape (n, M, k)
+        UAV coordinates, m.
+    d_hat : ndarray, shape (n, M)
+        Measured ranges, m.
+    h2 : ndarray, shape (n, 1), or float
+        Known squared offset of every squared distance, m^2.
+    a : ndarray or float
+        :math:`A_m` (per trial and UAV, or one value).
+    w : ndarray, shape (n, M)
+        Frozen weights of stage 1.
+    n_iter : int
+        Largest number of iterations.
+    tolerance : float
+        Convergence when the nearly undamped step is below ``tolerance`` times (1 m + the
+        distance from the UAVs' centroid).
+
+    Returns
+    -------
+    s, cost, converged, iterations, positive_definite : ndarray
+        ``s`` is updated only by steps that lower the cost, so it stays finite;
+        ``positive_definite`` tells whether the curvature at the final ``s`` is positive
+        definite (a minimum, not a maximum or saddle).
+
+    Notes
+    -----
+    With :func:`wls_terms` or :func:`nll_terms` the iteration runs compiled, one trial at a
+    time (:func:`_newton_batch`: the same rules, sums over the UAVs in order), so a trial's
+    result does not depend on its batch; any other ``terms`` runs the NumPy loop below, all
+    trials together.
+    """
+    n, k = s.shape
+    per = np.ndim(a) > 0
+    per_h = np.ndim(h2) > 0
+
+    def at(x, idx):
+        return terms(x, q[idx], d_hat[idx], h2[idx] if per_h else h2, a[idx] if per else a,
+                     w[idx])  # fmt: skip
+
+    centroid = q.mean(axis=1)  # fixed: the convergence scale needs it every iteration
+    cost, grad, hess, htr = at(s, np.arange(n))
+    mu = np.full(n, 1e-3)
+    active = np.ones(n, dtype=bool)
+    converged = np.zeros(n, dtype=bool)
+    iterations = np.zeros(n, dtype=np.int64)
+    for _ in range(n_iter):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        iterations[idx] += 1
+        # Damped Newton step: (Hess + mu tr/k I) delta = -grad, in closed form.
+        damped = hess[idx] + (mu[idx] * htr[idx] / k)[:, None, None] * np.eye(k)
+        step, descent = ref_solve_definite(damped, grad[idx])
+        step = -step
+        trial = s[idx] + step
+        t_cost, t_grad, t_hess, t_tr = at(trial, idx)
+        # Accept a step that lowers the cost; a positive definite damped matrix makes the
+        # step a descent direction. Where the change of the cost is at the level of its
+        # rounding error, a smaller gradient decides instead, so Newton's quadratic
+        # convergence is not stopped by rounding near the minimum.
+        # (The cost sums dozens of rounded terms: allow a few thousand ulps.)
+        rounding = 1e-12 * (np.abs(cost[idx]) + 1.0)
+        flat = np.abs(t_cost - cost[idx]) <= rounding
+        smaller_grad = np.linalg.norm(t_grad, axis=-1) < np.linalg.norm(grad[idx], axis=-1)
+        better = (
+            descent
+            & np.isfinite(t_cost)
+            & ((t_cost < cost[idx] - rounding) | (flat & smaller_grad))
+        )
+        near_newton = mu[idx] <= 1e-2
+        acc = idx[better]
+        s[acc] = trial[better]
+        cost[acc], grad[acc], htr[acc] = t_cost[better], t_grad[better], t_tr[better]
+        hess[acc] = t_hess[better]
+        mu[acc] = np.maximum(mu[acc] / 10.0, 1e-12)
+        rej = idx[~better]
+        mu[rej] = mu[rej] * 10.0
+        scale = 1.0 + np.linalg.norm(s[idx] - centroid[idx], axis=-1)
+        # Converged when the nearly undamped Newton step is negligible, accepted or not (at
+        # that size the change of the cost is below its rounding error). A heavily damped
+        # step is short whatever the distance to the minimum, so it never counts.
+        done = (np.linalg.norm(step, axis=-1) <= tolerance * scale) & near_newton
+        converged[idx[done]] = True
+        active[idx[done]] = False
+        active[idx[mu[idx] > 1e12]] = False  # hopeless damping: give up, report failed
+    _, positive_definite = ref_solve_definite(hess, grad)
+    return s, cost, converged, iterations, positive_definite
+
+
 @pytest.mark.parametrize("exact", [False, True])
 def test_compiled_damped_newton_follows_the_numpy_loop(exact):
-    """damped_newton runs the compiled loop for wls_terms/nll_terms and the NumPy loop for
-    any other callable: the same rules, so the same minima (to rounding) and flags."""
+    """The compiled damped Newton follows the rules of the NumPy transcription above: the
+    same minima (to rounding) and flags."""
     forms, ranges, radar = _trials(200, seed=3)
     a = radar.snr_constant
     h2 = np.full((200, 1), 400.0)
     w = a / np.maximum(np.abs(ranges), 20.0) ** 4
     s0 = estimation.linearised_estimate(forms, ranges, 20.0)
-    terms = estimation.nll_terms if exact else estimation.wls_terms
+    terms = ref_nll_terms if exact else ref_wls_terms
     q = np.ascontiguousarray(forms)
-    got = estimation.damped_newton(terms, s0.copy(), q, ranges, h2, a, w, 100, 1e-10)
-    ref = estimation.damped_newton(lambda *args: terms(*args), s0.copy(), q, ranges, h2, a, w,
-                                   100, 1e-10)  # fmt: skip
+    got = estimation.damped_newton(exact, s0.copy(), q, ranges, h2, a, w, 100, 1e-10)
+    ref = ref_damped_newton(terms, s0.copy(), q, ranges, h2, a, w, 100, 1e-10)
     same = got[2] & ref[2]  # converged in both (a few low-SNR trials may not)
     assert same.mean() > 0.9
     np.testing.assert_allclose(got[0][same], ref[0][same], rtol=1e-9, atol=1e-9)

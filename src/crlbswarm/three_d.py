@@ -80,9 +80,7 @@ from .estimation import (
     TargetEstimate,
     damped_newton,
     linearised_estimate,
-    nll_terms,
     noisy_range,
-    wls_terms,
 )
 from .fisher import SINGULAR_RTOL
 from .geometry import regular_polygon
@@ -945,11 +943,11 @@ def _estimate(q, d_hat, a, s0, batch, n_iter, tolerance) -> TargetEstimate:
     d_floor = np.maximum(np.abs(d_hat), 0.1)  # (a range measured near zero: finite weight)
     w = a_b / d_floor**4
     loose = max(tolerance, 1e-6)
-    s, _, _, it1, _ = damped_newton(wls_terms, s, q, d_hat, 0.0, a_b, w, n_iter, loose)
+    s, _, _, it1, _ = damped_newton(False, s, q, d_hat, 0.0, a_b, w, n_iter, loose)
     above = s[:, 2] > z_low - 0.1  # the other basin: reflect before the exact stage
     s[above, 2] = np.minimum(2.0 * z_mean[above] - s[above, 2], z_low[above] - 0.1)
     s, nll, converged, it2, minimum = damped_newton(
-        nll_terms, s, q, d_hat, 0.0, a_b, w, n_iter, tolerance
+        True, s, q, d_hat, 0.0, a_b, w, n_iter, tolerance
     )
     mirror = one_height & (s[:, 2] > z_low)  # exact: the same ranges, the same likelihood
     s[mirror, 2] = 2.0 * z_low[mirror] - s[mirror, 2]

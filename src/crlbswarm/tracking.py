@@ -55,6 +55,7 @@ __all__ = [
     "motion_matrices",
     "posterior_crlb",
     "predict",
+    "predict_covariance",
     "predict_into",
     "summed_range_information",
     "target_trajectories",
@@ -345,18 +346,7 @@ def _pcrb(fim, f, q, p0, n, every, out):
     for k in range(fim.shape[0]):
         if k > 0:
             # info = (Q + F info^-1 F^T)^-1, with cov = info^-1 from the step before
-            for r in range(n):
-                for c in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += f[r, j] * cov[j, c]
-                    fc[r, c] = acc
-            for r in range(n):
-                for c in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += fc[r, j] * f[c, j]
-                    cov[r, c] = q[r, c] + acc
+            predict_covariance(cov, f, q, n, fc)
             if not _lu_inverse(cov, n, info, lu, col, perm):
                 return False
         if k % every == 0:
@@ -484,6 +474,17 @@ def predict_into(x, P, F, Q, work):
         for c in range(n):
             acc += F[r, c] * x[c]
         x_new[r] = acc
+    predict_covariance(P, F, Q, n, fp)
+    for r in range(n):
+        x[r] = x_new[r]
+
+
+@njit(cache=True)
+def predict_covariance(P, F, Q, n, fp):
+    r"""The covariance prediction of the motion model, in place on the n x n blocks:
+    :math:`\mathbf P \leftarrow \mathbf F\mathbf P\mathbf F^\top + \mathbf Q`
+    (``fp``: n x n scratch). The filter's :func:`predict` and the recursion of
+    :func:`posterior_crlb` both call it. Allocates nothing."""
     for r in range(n):
         for c in range(n):
             acc = 0.0
@@ -496,8 +497,6 @@ def predict_into(x, P, F, Q, work):
             for j in range(n):
                 acc += fp[r, j] * F[c, j]
             P[r, c] = acc
-    for r in range(n):
-        x[r] = x_new[r]
 
 
 @njit(cache=True)
