@@ -643,3 +643,21 @@ def test_divergence_reports_the_first_diverging_run():
     message = str(info.value)
     assert f"run 2 (seed {first_bad}) diverged at step {step} " in message
     assert 1 <= int(step) <= 10
+
+
+def test_the_kernel_holds_only_the_layers_a_scenario_uses():
+    """The paper's mission passes None for the safety filter, the route and the filter in the
+    loop, so its compiled kernel holds none of them (a shorter first compile); paper_safe
+    passes arrays for the first two (issue 12)."""
+    from crlbswarm import mission_kernel as mk
+    from crlbswarm.simulation import layer_markers
+
+    assert layer_markers(load_scenario("paper")) == (None, None, None)
+    safe, route, track = layer_markers(load_scenario("paper_safe"))
+    assert safe is not None
+    assert route is not None
+    assert track is None
+    assert layer_markers(load_scenario("sensing"))[2] is not None
+    simulate(load_scenario("paper"), seed=0)
+    kinds = {tuple(str(t) for t in sig[-3:]) for sig in mk.run_batch.signatures}
+    assert ("none", "none", "none") in kinds

@@ -40,6 +40,7 @@ from ._validation import MAX_COORDINATE
 from .control import (
     consensus_update,
     control_cost,
+    eta_goal,
     eta_rate_limit,
     formation_update,
     motion_model,
@@ -294,11 +295,12 @@ def sense_target(q, s_true, z, x, p_cov, ranges, const, work):
 
 
 @njit(cache=True)
-def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work):
+def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work, safe):
     """Step 2's motion, for every UAV of every group: the obstacle repulsion (eq. (18)) added
     to the formation input in ``u`` (eq. (19)), through the safety filter when it is on
     (across all UAVs), then the motion model of eq. (3) from ``q`` (step k) to ``q_next``.
-    Returns False if a position ran away."""
+    ``safe``: None without the safety filter (its code is then not compiled), else any
+    array. Returns False if a position ran away."""
     dt = const.dt
     noise = inp.noise[k]
     for m in range(q.shape[0]):
@@ -306,13 +308,13 @@ def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work
             q[m, 0], q[m, 1], scene.rects, scene.circles, ctl.repulsion_gain,
             ctl.safety_radius, ctl.repulsion_max_step,
         )  # fmt: skip
-        if const.safety:  # the nominal displacement, filtered below
+        if safe is not None:  # the nominal displacement, filtered below
             d_work[m, 0] = u[m, 0] + rx + v[m, 0] * dt
             d_work[m, 1] = u[m, 1] + ry + v[m, 1] * dt
         else:
             q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rx, v[m, 0], dt, noise[m, 0])
             q_next[m, 1] = motion_model(q[m, 1], u[m, 1], ry, v[m, 1], dt, noise[m, 1])
-    if const.safety:
+    if safe is not None:
         safety_step(
             q, d_work, u, scene.rects, scene.circles, const.min_separation,
             const.sensing_radius, const.decay, const.pair_margin, const.obstacle_margin,
@@ -330,22 +332,27 @@ def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work
 
 @njit(cache=True)
 def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, node, out, inp,
-                 scene, ctl, rule, const, a_work, b_work):  # fmt: skip
+                 scene, ctl, rule, const, a_work, b_work, safe, route):  # fmt: skip
     """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3) (through the safety
     filter when it is on, :func:`move_uavs`), the cost (15), the consensus (14) and the next
-    eta. Returns False if a position ran away."""
+    eta (``safe``, ``route``: the feature markers of :func:`run_mission`). Returns False if
+    a position ran away."""
     delta = inp.delta
     formation_update(q, delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
-    if not move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work):
+    if not move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work,
+                     safe):  # fmt: skip
         return False
     out.cost[k] = control_cost(q, q_next, delta, vref, const.dt, scene.indptr, scene.indices)
     consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
     if rule.enabled:  # along the route (the straight line to the target off the planner)
-        goal = route_eta_goal(
-            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
-            scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum,
-            const.planner,
-        )  # fmt: skip
+        if route is not None:
+            goal = route_eta_goal(
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
+                scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+            )  # fmt: skip
+        else:
+            goal = eta_goal(cx, cy, sx, sy, const.radius, scene.rects, scene.circles,
+                            rule.margin, rule.lookahead, rule.samples, rule.minimum)  # fmt: skip
         out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * const.dt)
     else:
         out.eta[k + 1] = 1.0
@@ -436,9 +443,14 @@ def passed_nodes(cx, cy, k, nodes, next_node, reach):
 
 
 @njit(cache=True)
-def run_mission(out, inp, scene, ctl, rule, const):
+def run_mission(out, inp, scene, ctl, rule, const, safe, route, track):
     """One run from ``out.q[0]`` to the end of ``inp.noise``; returns -1, or the step at
-    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`)."""
+    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
+
+    ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route and the
+    filter in the loop on (any array, e.g. ``np.empty(0)``) or off (``None``): Numba drops
+    the code of a layer that is off, so a scenario compiles only what it uses (the paper's
+    mission compiles none of the three)."""
     k_steps = inp.noise.shape[0]
     m_uavs = out.q.shape[1]
     leader = const.leader
@@ -458,7 +470,7 @@ def run_mission(out, inp, scene, ctl, rule, const):
         q = out.q[k]
         eta = out.eta[k]
         # The formation's goal: the UAVs' own estimate of the target, or the truth.
-        if const.estimate:
+        if track is not None:
             if k % const.measure_every == 0:
                 x, p_cov = sense_target(q, inp.target[k], inp.range_noise[k], x, p_cov, ranges,
                                         const, f_work)  # fmt: skip
@@ -481,15 +493,20 @@ def run_mission(out, inp, scene, ctl, rule, const):
         cx /= m_uavs
         cy /= m_uavs
         # Step 1: the leader's reference velocity toward its slot over the goal.
-        gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
-            cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
-        )
-        if k == 0 and const.planner and rule.enabled:  # the formation forms at its goal's
-            eta = route_eta_goal(  # scale (the paper's rule starts at 1)
-                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
-                scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
-            )  # fmt: skip
-            out.eta[0] = eta
+        if route is not None:
+            gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
+                cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
+            )
+            if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the
+                eta = route_eta_goal(  # paper's rule starts at 1)
+                    cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius,
+                    scene.rects, scene.circles, rule.margin, rule.lookahead, rule.samples,
+                    rule.minimum, True,
+                )  # fmt: skip
+                out.eta[0] = eta
+        else:  # straight to the goal (the paper's guidance)
+            gx, gy, fvx, fvy = sx, sy, tvx, tvy
+            out.distance_to_go[k] = math.hypot(cx - sx, cy - sy)
         vref[0], vref[1] = reference_velocity(
             q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],
             gy + eta * inp.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
@@ -509,17 +526,18 @@ def run_mission(out, inp, scene, ctl, rule, const):
             break
         if not control_step(k, q, out.q[k + 1], out.v[k], out.v[k + 1], vref, eta, u, d_work,
                             cx, cy, sx, sy, node, out, inp, scene, ctl, rule, const, a_work,
-                            b_work):  # fmt: skip
+                            b_work, safe, route):  # fmt: skip
             return k + 1
-        if const.estimate:  # Step 3: prediction with the target's motion model.
+        if track is not None:  # Step 3: prediction with the target's motion model.
             predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
 
 
 @njit(cache=True, parallel=True)
-def run_batch(outs, inps, status, scene, ctl, rule, const):
+def run_batch(outs, inps, status, scene, ctl, rule, const, safe, route, track):
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
-    with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`);
+    with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
+    ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`);
     ``status[b]`` receives :func:`run_mission`'s result."""
     for b in prange(status.shape[0]):
         out = RunOutputs(
@@ -527,7 +545,7 @@ def run_batch(outs, inps, status, scene, ctl, rule, const):
             outs[6][b], outs[7][b], outs[8][b], outs[9][b],
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
-        status[b] = run_mission(out, inp, scene, ctl, rule, const)
+        status[b] = run_mission(out, inp, scene, ctl, rule, const, safe, route, track)
 
 
 # ---------------------------------------------------------------------------------------
@@ -602,7 +620,7 @@ class GroupOutputs(NamedTuple):
 
 
 @njit(cache=True)
-def run_groups(out, inp, scene, ctl, rule, const, grp):
+def run_groups(out, inp, scene, ctl, rule, const, grp, safe):
     """One run of a swarm split into groups, each flying its own formation to its own static
     target with its own leader, as :func:`run_mission` flies one (the same laws, called per
     group on the group's UAVs and graph, without the planner and the filter), while the
@@ -664,7 +682,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp):
                              u[lo:hi])  # fmt: skip
         q_next = out.q[k + 1]
         if not move_uavs(k, q, q_next, out.v[k], u, d_work, inp, scene, ctl, const, a_work,
-                         b_work):  # fmt: skip
+                         b_work, safe):  # fmt: skip
             return k + 1
         for g in range(n_groups):  # eqs. (15) and (14) and the next eta, per group
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
@@ -676,10 +694,10 @@ def run_groups(out, inp, scene, ctl, rule, const, grp):
                              out.v[k + 1][lo:hi])  # fmt: skip
             eta = out.eta[k, g]
             if rule.enabled:
-                goal = route_eta_goal(
-                    centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], -1,
-                    scene.nodes, scene.next_node, grp.radius[g], scene.rects, scene.circles,
-                    rule.margin, rule.lookahead, rule.samples, rule.minimum, False,
+                goal = eta_goal(
+                    centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], grp.radius[g],
+                    scene.rects, scene.circles, rule.margin, rule.lookahead, rule.samples,
+                    rule.minimum,
                 )  # fmt: skip
                 out.eta[k + 1, g] = eta_rate_limit(eta, goal, rule.rate * const.dt)
             else:
@@ -688,7 +706,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp):
 
 
 @njit(cache=True, parallel=True)
-def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp):
+def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp, safe):
     """:func:`run_groups` for every run of a batch in parallel threads (``outs``/``inps``:
     tuples of arrays with a leading run axis, in the field order of
     :class:`GroupOutputs`/:class:`RunInputs`)."""
@@ -698,4 +716,4 @@ def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp):
             outs[6][b], outs[7][b],
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
-        status[b] = run_groups(out, inp, scene, ctl, rule, const, grp)
+        status[b] = run_groups(out, inp, scene, ctl, rule, const, grp, safe)

@@ -50,6 +50,7 @@ __all__ = [
     "MAX_ITERATED_SEEDS",
     "MAX_SEED",
     "check_memory",
+    "layer_markers",
     "simulate",
     "simulate_groups",
     "start_positions",
@@ -198,6 +199,30 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
         "seeds" if n_runs > 1 else "scenario",
         f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
         "use " + ", or ".join(fixes),
+    )
+
+
+def layer_markers(sc: Scenario) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """The markers of the kernel's optional layers for ``sc``
+    (:func:`crlbswarm.mission_kernel.run_mission`): the safety filter, the planner's route,
+    the filter in the loop; each an empty array when on, None when off, so that the
+    compiled mission holds only the layers the scenario uses.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+
+    Returns
+    -------
+    tuple
+        ``(safe, route, track)``.
+    """
+    on = np.empty(0)
+    return (
+        on if sc.safety.enabled else None,
+        on if sc.planner_on else None,
+        on if sc.estimation.enabled else None,
     )
 
 
@@ -369,7 +394,7 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
         np.ascontiguousarray(truth[..., 2:]), x0, buf.delta[:n],
     )  # fmt: skip
     status = buf.status[:n]
-    run_batch(tuple(outs), tuple(inps), status, *kernel_args)
+    run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc))
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
@@ -597,7 +622,8 @@ def simulate_groups(
     inps = RunInputs(noise, np.zeros((n_runs, k1, m_uavs)), unused, unused,
                      np.zeros((n_runs, 2)), delta)  # fmt: skip
     status = np.empty(n_runs, dtype=np.int64)
-    run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups)
+    run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups,
+                    layer_markers(plan.scenarios[0])[0])  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, int(bad[0]), int(seed_arr[bad[0]]), int(status[bad[0]]))
