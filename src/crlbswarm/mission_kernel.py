@@ -109,12 +109,8 @@ class MissionConstants(NamedTuple):
         Flight altitude, m.
     snr_constant : float
         :math:`A` of the radar.
-    estimate : bool
-        Sensing in the loop (the goal is the filter's estimate).
     measure_every : int
         Ranges are measured every this many steps.
-    safety : bool
-        The safety filter is on (:mod:`crlbswarm.safety`).
     min_separation : float
         Its smallest distance between two UAVs, m.
     sensing_radius : float
@@ -127,8 +123,6 @@ class MissionConstants(NamedTuple):
         Its margin from obstacles, m.
     vmax_step : float
         Largest displacement per step, ``max_speed * dt``, m.
-    planner : bool
-        The leader follows the planned route (:mod:`crlbswarm.planning`).
     inflation : float
         The route's clearance from every obstacle, m.
     route_x : float
@@ -154,16 +148,13 @@ class MissionConstants(NamedTuple):
     radius: float
     altitude: float
     snr_constant: float
-    estimate: bool
     measure_every: int
-    safety: bool
     min_separation: float
     sensing_radius: float
     decay: float
     pair_margin: float
     obstacle_margin: float
     vmax_step: float
-    planner: bool
     inflation: float
     route_x: float
     route_y: float
@@ -372,15 +363,14 @@ def steering_footprint(eta, cx, cy, sx, sy, ctl, radius):
 
 @njit(cache=True)
 def leader_goal(cx, cy, sx, sy, tvx, tvy, scene, const, node, replan):
-    """Step 1's goal for the formation's centre: the target (``sx, sy``, moving at ``tvx,
-    tvy``), or with the planner, while the target is out of sight, the point ``const.carrot``
+    """Step 1's goal for the formation's centre with the planner (without it the goal is the
+    target itself, :func:`run_mission`): the target (``sx, sy``, moving at ``tvx, tvy``) in
+    sight, or, while it is out of sight, the point ``const.carrot``
     ahead of the centre along the route (no feedforward; a carrot, so that the formation
     keeps moving when its centre cannot reach a node exactly). Returns ``(gx, gy, vx, vy,
     distance to go, node)``, node -1 on the last leg
     (:func:`crlbswarm.planning.best_waypoint`). The route is re-planned from the centre when
     ``replan`` (every ``const.replan_every`` steps); in between, the last ``node`` is kept."""
-    if not const.planner:
-        return sx, sy, tvx, tvy, math.hypot(cx - sx, cy - sy), -1
     if replan:
         k, togo = best_waypoint(
             cx, cy, scene.nodes, scene.node_dist, const.route_x, const.route_y, scene.rects,
