@@ -35,6 +35,7 @@ from .mission_kernel import (
     SceneArrays,
     run_batch,
     run_group_batch,
+    run_mission,
 )
 from .planning import assign_slots
 from .results import GroupMissionResult, MissionResult, result_nbytes
@@ -391,7 +392,12 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
         np.ascontiguousarray(truth[..., 2:]), x0, buf.delta[:n],
     )  # fmt: skip
     status = buf.status[:n]
-    run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc))
+    if n == 1:  # one run: the serial kernel (no parallel driver to compile for it)
+        status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
+                                RunInputs(*(a[0] for a in inps)), *kernel_args,
+                                *layer_markers(sc))  # fmt: skip
+    else:
+        run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc))
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
