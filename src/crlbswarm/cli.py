@@ -186,9 +186,11 @@ def _add_design(sub: Any) -> None:
     fields["rotation"] = fields["rotation_deg"]
     _option(scene, fields, "--scenario", field="scenario", default=None,
             metavar="SCENARIO",
-            help=f"take M, altitude, target, radar, obstacles, control.safety_radius (as "
-            f"clearance) and safety.min_separation (when enabled) from a scenario "
-            f"({_BUILTIN_HELP}); options given override them")  # fmt: skip
+            help=f"design what a scenario flies ({_BUILTIN_HELP}): its M, altitude, "
+            "target(s), radar, obstacles and the constraints of its design when F* is "
+            "blocked (clearance 1.05 control.safety_radius, separation twice the start "
+            "separation, formation.criterion, max_radius, starts, seed); options given "
+            "override them")  # fmt: skip
     _add_constraint_options(design, fields)
     out = design.add_argument_group("output")
     out.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -219,9 +221,9 @@ def _add_constraint_options(design: Any, fields: dict[str, str]) -> None:
             "in order); repeat for more")  # fmt: skip
     for flag, field, what in (
         ("--clearance", "clearance", "smallest distance from each UAV to every obstacle "
-         "and no-fly zone, m (default 0, or the scenario's control.safety_radius)"),
+         "and no-fly zone, m (default 0, or the scenario's design clearance)"),
         ("--min-separation", "min_separation", "smallest distance between two UAVs, m "
-         "(default 0, or the scenario's safety.min_separation)"),
+         "(default 0, or the scenario's design separation)"),
         ("--max-radius", "max_radius", "largest distance from the target to a UAV, m"),
     ):  # fmt: skip
         _option(group, fields, flag, field=field, type=float, default=None, metavar="M",
