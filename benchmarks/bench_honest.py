@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import math
 import os
 import platform
 import time
@@ -38,21 +37,12 @@ import honest_baselines as hb
 import machine_floor as mf
 import peers
 from bench_scaling import swarm_scenario
+from timing import best_of
 
 try:
     from importlib.metadata import PackageNotFoundError, version
 except ImportError:  # pragma: no cover
     version = None
-
-
-def best(fn, repeat: int) -> float:
-    fn()
-    out = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        out = min(out, time.perf_counter() - t0)
-    return out
 
 
 def once(fn) -> float:
@@ -136,14 +126,14 @@ def main() -> None:
     # -- 1. the paper mission ------------------------------------------------------------
     n = args.batch
     steps, m_uavs = mi.steps, mi.m
-    t_cs1 = best(lambda: cs.simulate(sc, seed=0, keep_trajectories=False), 3 * args.repeat)
-    t_a1 = best(lambda: hb.plain_missions(mi, [0]), args.repeat)
-    t_b1 = best(lambda: hb.numpy_missions(mi, [0]), args.repeat)
-    t_cs = best(lambda: cs.simulate(sc, seeds=range(n), keep_trajectories=False), args.repeat)
+    t_cs1 = best_of(lambda: cs.simulate(sc, seed=0, keep_trajectories=False), 3 * args.repeat)
+    t_a1 = best_of(lambda: hb.plain_missions(mi, [0]), args.repeat)
+    t_b1 = best_of(lambda: hb.numpy_missions(mi, [0]), args.repeat)
+    t_cs = best_of(lambda: cs.simulate(sc, seeds=range(n), keep_trajectories=False), args.repeat)
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        t_cs_1t = best(lambda: cs.simulate(sc, seeds=range(n), keep_trajectories=False), 1)
+        t_cs_1t = best_of(lambda: cs.simulate(sc, seeds=range(n), keep_trajectories=False), 1)
     finally:
         numba.set_num_threads(threads)
     t_a = once(lambda: hb.plain_missions(mi, range(args.plain_runs))) * n / args.plain_runs
@@ -293,7 +283,7 @@ def main() -> None:
     swarm_steps = 10 if args.quick else 50
     big = swarm_scenario(args.swarm, swarm_steps)
     cs.simulate(big, seed=0, keep_trajectories=False)
-    t_big = best(lambda: cs.simulate(big, seed=1, keep_trajectories=False), 2)
+    t_big = best_of(lambda: cs.simulate(big, seed=1, keep_trajectories=False), 2)
     per_big = t_big / (swarm_steps * args.swarm)
     big_mi = hb.Mission.from_scenario(big)
     eta_count = hb._Counter()

@@ -19,11 +19,11 @@ multiply-add's half, although they cost more: the floor is optimistic, a lower b
 
 from __future__ import annotations
 
-import time
-
 import numba
 import numpy as np
 from numba import njit, prange
+
+from timing import best_of
 
 #: Fused multiply-adds applied to each element per pass of the flop probe.
 FMA_CHAIN = 16
@@ -63,16 +63,6 @@ def _triad_parallel(a, b, c, s):
         a[i] = b[i] + s * c[i]
 
 
-def _best(fn, repeat: int) -> float:
-    fn()
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def measure_rates(repeat: int = 5) -> dict[str, float]:
     """Measured flop rate (flop/s) and triad bandwidth (B/s), on one thread and on all
     Numba threads (keys ``flops_1``, ``flops_all``, ``bw_1``, ``bw_all``, ``threads``)."""
@@ -80,15 +70,15 @@ def measure_rates(repeat: int = 5) -> dict[str, float]:
     passes = 20_000
     # a * y + b with |a| < 1 keeps the values finite and normal.
     y = np.full(FLOP_ELEMENTS, 0.5)
-    t = _best(lambda: _fma_pass(y, 0.999, 1e-3, passes), repeat)
+    t = best_of(lambda: _fma_pass(y, 0.999, 1e-3, passes), repeat)
     work = 2.0 * FMA_CHAIN * FLOP_ELEMENTS * passes
     ys = np.full((threads, FLOP_ELEMENTS), 0.5)
-    t_all = _best(lambda: _fma_parallel(ys, 0.999, 1e-3, passes), repeat)
+    t_all = best_of(lambda: _fma_parallel(ys, 0.999, 1e-3, passes), repeat)
     a = np.zeros(TRIAD_ELEMENTS)
     b = np.ones(TRIAD_ELEMENTS)
     c = np.ones(TRIAD_ELEMENTS)
-    tb = _best(lambda: _triad(a, b, c, 0.5), repeat)
-    tb_all = _best(lambda: _triad_parallel(a, b, c, 0.5), repeat)
+    tb = best_of(lambda: _triad(a, b, c, 0.5), repeat)
+    tb_all = best_of(lambda: _triad_parallel(a, b, c, 0.5), repeat)
     nbytes = 24.0 * TRIAD_ELEMENTS
     return {
         "threads": float(threads),

@@ -18,11 +18,10 @@ H = 20 m, paper radar):
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 import crlbswarm as cs
+from timing import best_of
 
 TARGET = np.array([80.0, 90.0])
 H = 20.0
@@ -33,13 +32,8 @@ class NotInstalled(Exception):
 
 
 def _per_item(fn, items: int, repeat: int) -> float:
-    fn()
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best / items
+    """Best time of ``fn`` (:func:`timing.best_of`) per item it handles."""
+    return best_of(fn, repeat) / items
 
 
 def _formation():

@@ -1049,9 +1049,9 @@ def plan_groups(sc: Scenario) -> GroupPlan:
         part["radar"] = sc.radar_model.take(uavs).to_dict()
         part["guidance"] = {**data["guidance"], "planner": False}
         try:
-            scenarios.append(Scenario.model_validate(part))
-        except Exception as exc:  # a pydantic ValidationError wrapping the group's FieldError
-            reason = _one_reason(exc)
+            scenarios.append(Scenario.from_dict(part, source=""))
+        except ScenarioError as exc:  # the group's own field and reason, in one line
+            reason = f"{exc.field}: {exc.reason}" if exc.field else exc.reason
             raise FieldError(
                 _target_field(g), f"the group of UAVs {uavs.tolist()} cannot fly: {reason}"
             ) from None
@@ -1059,19 +1059,6 @@ def plan_groups(sc: Scenario) -> GroupPlan:
         leaders.append(lead)
     return GroupPlan(allocation, tuple(members), np.array(leaders, dtype=np.int64),
                      tuple(scenarios))  # fmt: skip
-
-
-def _one_reason(exc: Exception) -> str:
-    """The first reason of a validation error, as ``field: reason``."""
-    from pydantic import ValidationError
-
-    if isinstance(exc, ValidationError):
-        first = exc.errors()[0]
-        where = ".".join(str(x) for x in first["loc"])
-        cause = first.get("ctx", {}).get("error")
-        text = str(cause) if isinstance(cause, FieldError) else first["msg"]
-        return f"{where}: {text}" if where and not isinstance(cause, FieldError) else text
-    return str(exc)
 
 
 def _builtin_files() -> dict[str, Any]:

@@ -339,62 +339,21 @@ def _pcrb(fim, f, q, p0, n, every, out):
     cov = np.empty((4, 4))
     fc = np.empty((4, 4))
     lu = np.empty((4, 4))
-    col = np.empty(4)
-    perm = np.empty(4, dtype=np.int64)
-    if not _lu_inverse(p0, n, info, lu, col, perm):
+    if not _inverse_into(p0, n, info, lu):
         return False
     for k in range(fim.shape[0]):
         if k > 0:
             # info = (Q + F info^-1 F^T)^-1, with cov = info^-1 from the step before
             predict_covariance(cov, f, q, n, fc)
-            if not _lu_inverse(cov, n, info, lu, col, perm):
+            if not _inverse_into(cov, n, info, lu):
                 return False
         if k % every == 0:
             for r in range(2):
                 for c in range(2):
                     info[r, c] += fim[k, r, c]
-        if not _lu_inverse(info, n, cov, lu, col, perm):
+        if not _inverse_into(info, n, cov, lu):
             return False
         out[k] = cov[0, 0] + cov[1, 1]
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _lu_inverse(a, n, out, lu, col, perm):
-    """Inverse of the n x n block of ``a`` into ``out`` by an LU factorisation with partial
-    pivoting (``lu``, ``col``, ``perm``: scratch). False if a pivot is exactly zero."""
-    for r in range(n):
-        perm[r] = r
-        for c in range(n):
-            lu[r, c] = a[r, c]
-    for c in range(n):
-        piv = c
-        for r in range(c + 1, n):
-            if abs(lu[r, c]) > abs(lu[piv, c]):
-                piv = r
-        if lu[piv, c] == 0.0:
-            return False
-        if piv != c:
-            for j in range(n):
-                lu[c, j], lu[piv, j] = lu[piv, j], lu[c, j]
-            perm[c], perm[piv] = perm[piv], perm[c]
-        for r in range(c + 1, n):
-            lu[r, c] /= lu[c, c]
-            for j in range(c + 1, n):
-                lu[r, j] -= lu[r, c] * lu[c, j]
-    for j in range(n):
-        for r in range(n):  # forward substitution with the permuted unit vector
-            acc = 1.0 if perm[r] == j else 0.0
-            for i in range(r):
-                acc -= lu[r, i] * col[i]
-            col[r] = acc
-        for r in range(n - 1, -1, -1):
-            acc = col[r]
-            for i in range(r + 1, n):
-                acc -= lu[r, i] * col[i]
-            col[r] = acc / lu[r, r]
-        for r in range(n):
-            out[r, j] = col[r]
     return True
 
 
@@ -598,13 +557,15 @@ def update_into(x, P, uav_xy, ranges, altitude, snr_constant, n_iter, work):
 
 
 @njit(cache=True)
-def _solve_into(a, b, n, m, x):
-    """Solve the n x n system a x = b (n <= 4) by Gaussian elimination with pivoting, into
-    ``x`` (``m``: scratch of at least n x n; ``a`` and ``b`` are left alone)."""
+def _eliminate(a, rhs, n, cols, m):
+    """Solve the n x n system ``a X = rhs`` (n <= 4) for the first ``cols`` columns of
+    ``rhs`` in place, by Gaussian elimination with partial pivoting (``m``: scratch of at
+    least n x n; ``a`` is left alone). The same operations on every column, so one column
+    solved alone has the bits of the same column solved with others. Returns False, the
+    columns unfinished, if a pivot is exactly zero."""
     for r in range(n):
         for c in range(n):
             m[r, c] = a[r, c]
-        x[r] = b[r]
     for c in range(n):
         piv = c
         for r in range(c + 1, n):
@@ -613,47 +574,40 @@ def _solve_into(a, b, n, m, x):
         if piv != c:
             for j in range(n):
                 m[c, j], m[piv, j] = m[piv, j], m[c, j]
-            x[c], x[piv] = x[piv], x[c]
+            for j in range(cols):
+                rhs[c, j], rhs[piv, j] = rhs[piv, j], rhs[c, j]
+        if m[c, c] == 0.0:  # exactly singular: no inverse (as numpy.linalg.inv refuses)
+            return False
         for r in range(c + 1, n):
             f = m[r, c] / m[c, c]
             for j in range(c, n):
                 m[r, j] -= f * m[c, j]
-            x[r] -= f * x[c]
-    for c in range(n - 1, -1, -1):
-        acc = x[c]
-        for j in range(c + 1, n):
-            acc -= m[c, j] * x[j]
-        x[c] = acc / m[c, c]
+            for j in range(cols):
+                rhs[r, j] -= f * rhs[c, j]
+    for j in range(cols):
+        for c in range(n - 1, -1, -1):
+            acc = rhs[c, j]
+            for i in range(c + 1, n):
+                acc -= m[c, i] * rhs[i, j]
+            rhs[c, j] = acc / m[c, c]
+    return True
+
+
+@njit(cache=True)
+def _solve_into(a, b, n, m, x):
+    """Solve the n x n system a x = b (n <= 4) into ``x`` (:func:`_eliminate`; ``m``:
+    scratch of at least n x n; ``a`` and ``b`` are left alone)."""
+    for r in range(n):
+        x[r] = b[r]
+    _eliminate(a, x[:n].reshape((n, 1)), n, 1, m)
 
 
 @njit(cache=True)
 def _inverse_into(a, n, out, m):
     """Inverse of the n x n matrix a (n <= 4) into ``out`` (which must not share memory
-    with ``a``): the elimination of :func:`_solve_into` done once, on all n unit vectors
-    together (the same operations on each column as n separate solves, so the same bits);
-    ``m`` is scratch."""
+    with ``a``): :func:`_eliminate` on the n unit vectors (``m`` is scratch). Returns False
+    if a pivot is exactly zero."""
     for r in range(n):
         for c in range(n):
-            m[r, c] = a[r, c]
             out[r, c] = 1.0 if r == c else 0.0
-    for c in range(n):
-        piv = c
-        for r in range(c + 1, n):
-            if abs(m[r, c]) > abs(m[piv, c]):
-                piv = r
-        if piv != c:
-            for j in range(n):
-                m[c, j], m[piv, j] = m[piv, j], m[c, j]
-                out[c, j], out[piv, j] = out[piv, j], out[c, j]
-        for r in range(c + 1, n):
-            f = m[r, c] / m[c, c]
-            for j in range(c, n):
-                m[r, j] -= f * m[c, j]
-            for j in range(n):
-                out[r, j] -= f * out[c, j]
-    for j in range(n):
-        for c in range(n - 1, -1, -1):
-            acc = out[c, j]
-            for i in range(c + 1, n):
-                acc -= m[c, i] * out[i, j]
-            out[c, j] = acc / m[c, c]
+    return _eliminate(a, out, n, n, m)
