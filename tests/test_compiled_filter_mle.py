@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -232,6 +233,73 @@ def test_estimate_target_does_not_depend_on_the_batch():
                                       20.0, radar))  # fmt: skip
     for a, b in zip(grid, whole, strict=True):
         np.testing.assert_array_equal(a.reshape(b.shape), b)
+
+
+def _plain_cases():
+    """Calls of ``estimate_target`` that take its plain path (float64 NumPy arrays, a float
+    altitude or one per trial, ...), by name: keyword arguments."""
+    forms, ranges, radar = _trials(24, seed=3)
+    rng = np.random.default_rng(8)
+    f_star = np.ascontiguousarray(forms[0])
+    per_uav = cs.Radar(tx_power=rng.uniform(0.05, 0.2, 6))
+    read_only = ranges.copy()
+    read_only.flags.writeable = False
+    return {
+        "one trial": dict(uav_xy=forms[3], measured_ranges=ranges[3], altitude=20.0),
+        "batch": dict(uav_xy=forms, measured_ranges=ranges, altitude=20.0, radar=radar),
+        "broadcast formation": dict(uav_xy=np.broadcast_to(f_star, (12, 6, 2)),
+                                    measured_ranges=ranges[:12], altitude=20.0),
+        "one formation": dict(uav_xy=f_star, measured_ranges=ranges[:12], altitude=20),
+        "altitude per trial": dict(uav_xy=forms, measured_ranges=ranges,
+                                   altitude=rng.uniform(15.0, 25.0, 24)),
+        "per-UAV radar": dict(uav_xy=forms, measured_ranges=ranges, altitude=20.0,
+                              radar=per_uav),
+        "init": dict(uav_xy=forms, measured_ranges=ranges, altitude=20.0,
+                     init=rng.uniform(60.0, 100.0, (24, 2)), max_iter=7, tol=1e-6),
+        "one init": dict(uav_xy=forms, measured_ranges=ranges, altitude=np.float64(20.0),
+                         init=np.array([80.0, 90.0])),
+        "read-only, strided": dict(uav_xy=forms[:, ::-1], measured_ranges=read_only[:, ::-1],
+                                   altitude=20.0),
+        "astronomical ranges": dict(uav_xy=f_star, measured_ranges=np.full(6, 1e30),
+                                    altitude=20.0),
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(_plain_cases()))
+def test_estimate_target_plain_path_equals_the_general_path(case, monkeypatch):
+    """The plain path (no Python checks, two compiled calls) gives the general path's
+    results bit for bit: the general path gets the same numbers as lists."""
+    args = _plain_cases()[case]
+    general = {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in args.items()}
+    expected = cs.estimate_target(**general)
+    monkeypatch.setattr(estimation, "_estimate", None)  # (the general path would fail)
+    got = cs.estimate_target(**args)
+    for a, b in zip(_fields(got), _fields(expected), strict=True):
+        assert a.shape == b.shape
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"measured_ranges": np.array([24.5, np.nan, 24.5, 24.5, 24.5, 24.5])},
+         "measured_ranges: must be finite"),
+        ({"measured_ranges": np.array([24.5, 2e30, 24.5, 24.5, 24.5, 24.5])},
+         "measured_ranges: must be between -1e+30 and 1e+30 m"),
+        ({"uav_xy": np.full((6, 2), 2e7)}, "uav_xy: must be between -1e+07 and 1e+07 m"),
+        ({"altitude": 0.05}, "altitude: must be between 0.1 and 100000 m"),
+        ({"altitude": np.array(math.inf)}, "altitude: must be finite"),
+        ({"init": np.array([np.nan, 0.0])}, "init: must be finite"),
+        ({"tol": math.nan}, "tol: must be finite"),
+        ({"max_iter": 0}, "max_iter: must be at least 1"),
+    ],
+)  # fmt: skip
+def test_estimate_target_plain_call_with_bad_values_raises_the_general_error(change, message):
+    args = {"uav_xy": cs.optimal_formation(6, (0.0, 0.0), 20.0),
+            "measured_ranges": np.full(6, 24.5), "altitude": 20.0, **change}  # fmt: skip
+    with pytest.raises(cs.FieldError, match="^" + re.escape(message)):
+        cs.estimate_target(**args)
 
 
 def test_estimate_target_3d_does_not_depend_on_the_batch():

@@ -334,7 +334,7 @@ def _linearised_trial(q, d_hat, h2, out, work):
     out[1] = cy + sy
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class TargetEstimate:
     """Result of :func:`estimate_target` for a batch of trials.
 
@@ -355,6 +355,22 @@ class TargetEstimate:
     converged: np.ndarray
     iterations: np.ndarray
     nll: np.ndarray
+
+    def __init__(
+        self,
+        position: np.ndarray,
+        converged: np.ndarray,
+        iterations: np.ndarray,
+        nll: np.ndarray,
+    ) -> None:
+        # The fields of a frozen dataclass, set once through the instance dict: half the
+        # time of the generated __init__ (four object.__setattr__), which a batch of one
+        # trial feels.
+        fields = self.__dict__
+        fields["position"] = position
+        fields["converged"] = converged
+        fields["iterations"] = iterations
+        fields["nll"] = nll
 
     @property
     def failed(self) -> np.ndarray:
@@ -443,26 +459,39 @@ def _newton_batch(exact, s, q, d_hat, h2, a, w, n_iter, tolerance, cost_out, con
 
 
 @njit(cache=True, error_model="numpy")
-def _mle_batch(q, d_hat, h2, a, w, s, start, n_iter, tolerance, nll_out, conv_out, it_out):
-    """Both stages of :func:`estimate_target` for every trial, one after the other: the
+def _mle_batch(q, d_hat, h, a, p4, s, start, n_iter, tolerance, nll_out, conv_out, it_out):
+    r"""Both stages of :func:`estimate_target` for every trial, one after the other: the
     closed-form start (unless ``start`` is False: ``s`` holds the starts), stage 1
-    (weighted least squares with the frozen weights ``w``, loose tolerance), stage 2 (the
-    exact likelihood). Results into ``s`` (in place) and the ``*_out`` arrays."""
-    work = _newton_work()
-    lin = np.empty((5, 3))
+    (weighted least squares with the frozen weights :math:`A_m/p_m`, ``p4`` holding
+    :math:`p_m = \max(|\hat d_m|, H)^4`; loose tolerance), stage 2 (the exact likelihood).
+    ``q``, the altitudes ``h`` and ``a`` have one row per trial or a single row. Results
+    into ``s`` (in place) and the ``*_out`` arrays; returns whether every position and
+    likelihood is finite."""
+    m_uavs = d_hat.shape[1]
+    scratch = np.zeros((20 + (m_uavs + 2) // 3, 3))  # one allocation (small batches feel each)
+    work, lin, w = scratch[:15], scratch[15:20], scratch[20:].reshape(-1)[:m_uavs]
     loose = max(tolerance, 1e-6)  # stage 1 only has to land in the basin of the MLE
+    finite = True
     for i in range(s.shape[0]):
-        qi, di, ai, wi, si = q[i], d_hat[i], a[i], w[i], s[i]
+        qi = q[i if q.shape[0] > 1 else 0]
+        hi = h[i if h.shape[0] > 1 else 0]
+        hi = hi * hi
+        ai = a[i if a.shape[0] > 1 else 0]
+        di, si = d_hat[i], s[i]
+        for m in range(m_uavs):
+            w[m] = ai[m] / p4[i, m]
         if start:
-            _linearised_trial(qi, di, h2[i], si, lin)
-        _, _, it1, _ = _newton_trial(False, si, qi, di, h2[i], ai, wi, n_iter, loose, work)
+            _linearised_trial(qi, di, hi, si, lin)
+        _, _, it1, _ = _newton_trial(False, si, qi, di, hi, ai, w, n_iter, loose, work)
         nll, converged, it2, minimum = _newton_trial(
-            True, si, qi, di, h2[i], ai, wi, n_iter, tolerance, work
+            True, si, qi, di, hi, ai, w, n_iter, tolerance, work
         )
         nll_out[i] = nll
         # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
         conv_out[i] = converged and minimum
         it_out[i] = it1 + it2
+        finite = finite and math.isfinite(nll) and math.isfinite(si[0]) and math.isfinite(si[1])
+    return finite
 
 
 @njit(cache=True, error_model="numpy")
@@ -676,6 +705,9 @@ def estimate_target(
         Estimates, convergence flags, iterations (both stages) and the final negative
         log-likelihood.
     """
+    est = _estimate_plain(uav_xy, measured_ranges, altitude, radar, init, max_iter, tol)
+    if est is not None:
+        return est
     q, h = _check_uavs(uav_xy, altitude)
     a = check_radar(radar, q.shape[-2])
     d_hat = _ranges_array(measured_ranges, q.shape[-2])
@@ -690,11 +722,11 @@ def estimate_target(
     s0 = None if init is None else _v.location(init, "init")
     # Absurd inputs (ranges whose squares overflow) make the costs infinite: every step is
     # then rejected and the trial is reported as failed (compiled: no warning).
-    est = _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
-    reason = "so far from the ranges the geometry can produce that the likelihood overflows"
-    _v.finite_result(est.position, "measured_ranges", reason)
-    _v.finite_result(est.nll, "measured_ranges", reason)
-    return est
+    return _estimate(q, d_hat, h, a, s0, n_iter, tolerance)
+
+
+#: The error of :func:`estimate_target` when a position or a likelihood is not finite.
+_OVERFLOW = "so far from the ranges the geometry can produce that the likelihood overflows"
 
 
 def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
@@ -711,13 +743,194 @@ def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
     converged = np.empty(batch, dtype=np.bool_)
     iterations = np.empty(batch, dtype=np.int64)
     d_b = _batch_array(d_hat, batch, (m_uavs,))
-    h2 = _batch_array(h * h, batch)
+    h_b = _batch_array(h, batch)
     a_b = _batch_array(a, batch, (m_uavs,))
-    # Frozen weights of stage 1 (NumPy's power, as before); a range measured near zero
-    # (absurd SNR) gets a finite weight.
+    # The frozen weights of stage 1 are A_m / p4 (NumPy's power: its vectorised pow, which
+    # the compiled code does not reproduce bit for bit); a range measured near zero (absurd
+    # SNR) gets a finite weight.
     with np.errstate(over="ignore"):
-        w = a_b / np.maximum(np.abs(d_b), np.sqrt(h2)[:, None]) ** 4
-    _mle_batch(_batch_array(q, batch, (m_uavs, 2)), d_b, h2, a_b, w, s.reshape(-1, 2),
-               s0 is None, n_iter, tolerance, nll.reshape(-1), converged.reshape(-1),
-               iterations.reshape(-1))  # fmt: skip
+        p4 = np.maximum(np.abs(d_b), np.sqrt(h_b * h_b)[:, None]) ** 4
+    finite = _mle_batch(_batch_array(q, batch, (m_uavs, 2)), d_b, h_b, a_b, p4,
+                        s.reshape(-1, 2), s0 is None, n_iter, tolerance, nll.reshape(-1),
+                        converged.reshape(-1), iterations.reshape(-1))  # fmt: skip
+    if not finite:
+        raise FieldError("measured_ranges", _OVERFLOW)
     return TargetEstimate(position=s, converged=converged, iterations=iterations, nll=nll)
+
+
+_F8 = np.dtype(np.float64)
+_BOOL = np.dtype(np.bool_)
+_I8 = np.dtype(np.int64)
+_FOUR = np.array(4.0)  # (the exponent as an array: the ufunc skips a conversion)
+_DEFAULT_A = _DEFAULT_RADAR.snr_constant
+#: :math:`A` of the default radar, one (1, M) array per number of UAVs M.
+_DEFAULT_ROWS: dict[int, np.ndarray] = {}
+#: The last altitudes given as numbers, as arrays of one entry.
+_ALTITUDES: dict[float, np.ndarray] = {}
+_NO_INIT = np.empty((0, 2))
+
+#: The ranges :func:`_mle_inputs` checks: coordinates, measured ranges, altitudes.
+_LIMITS = np.array([_v.MAX_COORDINATE, _v.MAX_MEASURED_RANGE, _v.MIN_ALTITUDE, _v.MAX_ALTITUDE])
+
+#: Largest number of ranges :func:`_estimate_plain` takes: above, the general path checks
+#: the memory first (:func:`crlbswarm._validation.check_elements`, 8 copies).
+_PLAIN_RANGES = _v.SMALL_REQUEST // 64
+
+
+def _plain(x: np.ndarray) -> np.ndarray:
+    """``x`` if C-contiguous and writable (the one array type of the compiled loops), else
+    a copy that is."""
+    flags = x.flags
+    return x if flags.c_contiguous and flags.writeable else x.copy()
+
+
+def _estimate_plain(q, d, altitude, radar, init, max_iter, tol) -> TargetEstimate | None:
+    """:func:`estimate_target` of the common call without its Python checks, or None.
+
+    The common call: float64 NumPy arrays of ranges, shape (M,) or (n, M), and of UAVs,
+    shape (M, 2) or that of the ranges plus 2 (a formation broadcast over the trials, stride
+    0, is read once); a float altitude or one per trial; a :class:`Radar`; ``init`` None or a
+    float64 array of shape (2,) or (n, 2); an int ``max_iter`` and a float ``tol`` in range.
+    The values are then checked by the compiled :func:`_mle_inputs`, and both stages run by
+    :func:`_mle_batch`. Anything else, or any value or result those refuse, returns None:
+    the general path of :func:`estimate_target` then computes (the same, bit for bit: the
+    same compiled loops) or raises its error. This path exists for small batches, whose
+    time was the general path's checks (about 40 µs per call, docs/performance.md).
+    """
+    if (type(d) is not np.ndarray or type(q) is not np.ndarray or d.dtype is not _F8
+            or q.dtype is not _F8 or type(max_iter) is not int
+            or not isinstance(tol, float)):  # fmt: skip
+        return None
+    shape = d.shape
+    if len(shape) == 2:
+        n, m_uavs = shape
+    elif len(shape) == 1:
+        n, m_uavs = 1, shape[0]
+        d = d[None]
+    else:
+        return None
+    if q.shape == (m_uavs, 2):
+        q = q[None]
+    elif q.shape != (*shape, 2):
+        return None
+    elif n > 1 and q.strides[0] == 0:  # one formation broadcast over the trials
+        q = q[:1].copy()
+    if not (0 < n * m_uavs < _PLAIN_RANGES and 1 <= max_iter <= MAX_ITERATIONS
+            and 0.0 < tol < math.inf and (m_uavs >= 3 or init is not None)):  # fmt: skip
+        return None
+    # (the common cases inline, the others by helpers: a small batch feels every call)
+    a = _DEFAULT_ROWS.get(m_uavs) if radar is _DEFAULT_RADAR else None
+    if a is None:
+        a = _plain_radar(radar, m_uavs)
+    h = _ALTITUDES.get(altitude) if type(altitude) is float else None
+    if h is None:
+        h = _plain_altitude(altitude, shape[:-1])
+    s_init = _NO_INIT if init is None else _plain_init(init, shape[:-1])
+    if a is None or h is None or s_init is None:
+        return None
+    flags = q.flags
+    if not (flags.c_contiguous and flags.writeable):
+        q = q.copy()
+    flags = d.flags
+    if not (flags.c_contiguous and flags.writeable):
+        d = d.copy()
+    s = np.empty((n, 2))
+    p4 = np.empty((n, m_uavs))
+    if not _mle_inputs(q, d, h, s_init, s, p4, _LIMITS):
+        return None
+    np.power(p4, _FOUR, p4)  # NumPy's power, as the general path
+    nll = np.empty(n)
+    converged = np.empty(n, _BOOL)
+    iterations = np.empty(n, _I8)
+    if not _mle_batch(q, d, h, a, p4, s, init is None, max_iter, tol, nll, converged,
+                      iterations):  # fmt: skip
+        return None
+    if len(shape) == 1:  # one trial: the shapes of the general path, (2,) and ()
+        s, nll = s.reshape(2), nll.reshape(())
+        converged, iterations = converged.reshape(()), iterations.reshape(())
+    return TargetEstimate(s, converged, iterations, nll)
+
+
+def _plain_radar(radar: object, m_uavs: int) -> np.ndarray | None:
+    """:math:`A` of a :class:`Radar` as a (1, ``m_uavs``) array, or None (not a radar, or
+    per-UAV fields of another length: the general path raises). Those of the default radar
+    are kept (the compiled loops only read them)."""
+    if radar is _DEFAULT_RADAR:
+        row = _DEFAULT_ROWS.get(m_uavs)
+        if row is None:
+            if len(_DEFAULT_ROWS) > 16:
+                _DEFAULT_ROWS.clear()
+            row = _DEFAULT_ROWS[m_uavs] = np.full((1, m_uavs), _DEFAULT_A)
+        return row
+    if not isinstance(radar, Radar):
+        return None
+    a = radar.snr_constant
+    if not (isinstance(a, float) or a.shape[0] == m_uavs):
+        return None
+    row = np.empty((1, m_uavs))
+    row[0] = a
+    return row
+
+
+def _plain_altitude(h: object, batch: tuple[int, ...]) -> np.ndarray | None:
+    """The altitude as an array of 1 entry (kept for the next call: the compiled loops only
+    read it) or of one per trial, or None: a float, an int in range, or float64 of shape ()
+    or ``batch``."""
+    if isinstance(h, float) or (type(h) is int and 0 < h <= _v.MAX_ALTITUDE):
+        arr = _ALTITUDES.get(h)
+        if arr is None:
+            if len(_ALTITUDES) > 16:
+                _ALTITUDES.clear()
+            arr = _ALTITUDES[h] = np.array((float(h),))
+        return arr
+    if type(h) is np.ndarray and h.dtype is _F8 and (h.ndim == 0 or h.shape == batch):
+        return _plain(h.reshape(-1))
+    return None
+
+
+def _plain_init(init: object, batch: tuple[int, ...]) -> np.ndarray | None:
+    """``init`` as an array of shape (1, 2) or (n, 2), or None: float64 of shape (2,) or
+    ``batch`` + (2,)."""
+    if (
+        type(init) is np.ndarray
+        and init.dtype is _F8
+        and (init.shape == (2,) or init.shape == (*batch, 2))
+    ):
+        return _plain(init.reshape(-1, 2))
+    return None
+
+
+@njit(cache=True, error_model="numpy")
+def _mle_inputs(q, d_hat, h, init, s, p4, limits):
+    r"""The value checks of :func:`estimate_target` (its general path's, in one pass): UAVs
+    and ``init`` within +-``limits[0]`` m, ranges within +-``limits[1]`` m, altitudes ``h``
+    in [``limits[2]``, ``limits[3]``] m, all finite. If they hold, writes ``s``, the starts
+    (``init``; untouched if it has no rows), and ``p4``, the base :math:`\max(|\hat d_m|,
+    H)` of the weights of stage 1 (NumPy raises it to the fourth power afterwards), and
+    returns True; otherwise returns False, having written nothing. ``q``, ``h`` and
+    ``init`` have one row per trial or a single row."""
+    coordinate, measured = limits[0], limits[1]
+    for i in range(q.shape[0]):
+        for m in range(q.shape[1]):
+            if not (abs(q[i, m, 0]) <= coordinate and abs(q[i, m, 1]) <= coordinate):
+                return False
+    for i in range(init.shape[0]):
+        if not (abs(init[i, 0]) <= coordinate and abs(init[i, 1]) <= coordinate):
+            return False
+    for i in range(h.shape[0]):
+        if not limits[2] <= h[i] <= limits[3]:
+            return False
+    for i in range(d_hat.shape[0]):
+        for m in range(d_hat.shape[1]):
+            if not abs(d_hat[i, m]) <= measured:
+                return False
+    for i in range(s.shape[0]):
+        if init.shape[0]:
+            row = init[i if init.shape[0] > 1 else 0]
+            s[i, 0] = row[0]
+            s[i, 1] = row[1]
+        hi = h[i if h.shape[0] > 1 else 0]
+        floor = math.sqrt(hi * hi)
+        for m in range(d_hat.shape[1]):
+            p4[i, m] = max(abs(d_hat[i, m]), floor)
+    return True
