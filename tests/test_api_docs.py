@@ -32,6 +32,7 @@ MODULES = [
     "crlbswarm.graphs",
     "crlbswarm.obstacles",
     "crlbswarm.spatial",
+    "crlbswarm.counter_rng",
     "crlbswarm.safety",
     "crlbswarm.planning",
     "crlbswarm.control",
