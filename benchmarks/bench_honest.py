@@ -261,6 +261,7 @@ def main() -> None:
         counts["samples"],
         counts["repulsion_terms"],
         extra_flops=2.0 * (m_uavs - 1),
+        segment_tests=counts["segment_tests"],
     )
     floor1 = mf.floor_time(work, rates["flops_1"], rates["bw_1"])
     floor_all = mf.floor_time(work, rates["flops_all"], rates["bw_all"])

@@ -17,15 +17,19 @@ obstacles, graph, radar constant). Both fly the laws of the built-in ``paper`` s
   toward the target; at each, the best clearance across the path within +-r* (9 points),
   the smallest of these is the free half-width ``w``; ``goal = clip((w - margin) / r*,
   eta_min, 1)``, blended to 1 near the target, and eta steps toward it by at most
-  ``rate dT``. Like crlbswarm (docs/performance.md), a sample whose own clearance is at
-  least ``r* + margin`` is not looked across, and the scan stops once ``w`` forces
-  ``eta_min``: neither changes the result;
+  ``rate dT``. Like crlbswarm (docs/performance.md), the whole sampled segment, from r*
+  behind the centroid to the look-ahead, is first tested against every obstacle (exact
+  segment-to-rectangle and segment-to-disc distances): if it keeps ``r* + margin`` plus a
+  pad of 1e-6 m, every sample would be skipped below and the rule returns at once; else a
+  sample whose own clearance is at least ``r* + margin`` is not looked across, and the
+  scan stops once ``w`` forces ``eta_min``: none of these changes the result;
 * metrics per step: the CRLB, eq. (10), at the UAVs' positions; the smallest obstacle
   clearance; eta; the cost, eq. (15).
 
-Random inputs follow the documented stream layout of ``crlbswarm.simulate``
-(``SeedSequence(seed).spawn(4)``: start, disturbance, ...), so the same seed gives the same
-start and disturbance and the trajectories can be compared to crlbswarm's directly.
+Random inputs follow the documented stream layout of ``crlbswarm.simulate`` (the start from
+``SeedSequence(seed).spawn(4)[0]``, the disturbance from the counter-based generator of
+``crlbswarm.counter_rng``, drawn up front here as an array), so the same seed gives the
+same start and disturbance and the trajectories can be compared to crlbswarm's directly.
 
 (a) :func:`plain_mission`: one run, loops over UAVs, neighbours, obstacles and samples,
 ``math`` only. (b) :func:`numpy_missions`: every run of a batch together, arrays
@@ -39,7 +43,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crlbswarm.counter_rng import DISTURBANCE, standard_normals
+
 LATERAL = 9  # points across the path in the eta rule
+PATH_PAD = 1e-6  # m, by which the eta rule's segment must clear for its samples to be skipped
+CLEAR_TOL = 1e-9  # m, the rounding tolerance of the segment test
 HOVER_INNER, HOVER_OUTER = 0.25, 1.0  # the eta rule's and the steering's blend, in r*
 
 
@@ -119,11 +127,13 @@ class Mission:
 
 
 def draw(mission: Mission, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Start (M, 2) and disturbance (K, M, 2) of the run with ``seed``."""
-    start_ss, noise_ss = np.random.SeedSequence(seed).spawn(4)[:2]
+    """Start (M, 2) and disturbance (K, M, 2) of the run with ``seed``: the draws of
+    crlbswarm (the start from the first NumPy stream of the seed, the disturbance from the
+    counter-based generator, :func:`crlbswarm.counter_rng.standard_normals`)."""
+    start_ss = np.random.SeedSequence(seed).spawn(4)[0]
     (x0, x1), (y0, y1) = mission.region
     start = np.random.default_rng(start_ss).uniform((x0, y0), (x1, y1), size=(mission.m, 2))
-    noise = np.random.default_rng(noise_ss).standard_normal((mission.steps, mission.m, 2))
+    noise = standard_normals(seed, DISTURBANCE, mission.steps, mission.m)
     noise *= mission.sigma
     return start, noise
 
@@ -163,6 +173,7 @@ class _Counter:
     eta_evaluations = 0
     samples = 0
     repulsion_terms = 0
+    segment_tests = 0
 
 
 def _clearance(x, y, mi: Mission, count: _Counter | None = None) -> float:
@@ -197,6 +208,71 @@ def _repulsion(x, y, mi: Mission, l_safe, cap, inflate=0.0, count=None):
     return fx, fy
 
 
+def _segment_d2(px, py, ax, ay, dx, dy, den):
+    """Squared distance from (px, py) to the segment from (ax, ay) to (ax + dx, ay + dy),
+    ``den = dx^2 + dy^2``."""
+    t = 0.0
+    if den > 0.0:
+        t = min(max(((px - ax) * dx + (py - ay) * dy) / den, 0.0), 1.0)
+    ex = ax + t * dx - px
+    ey = ay + t * dy - py
+    return ex * ex + ey * ey
+
+
+def _meets_box(ax, ay, dx, dy, xmin, xmax, ymin, ymax) -> bool:
+    """Whether the segment from (ax, ay) to (ax + dx, ay + dy) meets the closed box
+    (Liang-Barsky: the parameters t0 <= t1 of its part in the box)."""
+    t0, t1 = 0.0, 1.0
+    for p, q in ((-dx, ax - xmin), (dx, xmax - ax), (-dy, ay - ymin), (dy, ymax - ay)):
+        if p == 0.0:
+            if q < 0.0:
+                return False  # parallel to this side and outside it
+        elif p < 0.0:
+            t0 = max(t0, q / p)
+        else:
+            t1 = min(t1, q / p)
+        if t0 > t1:
+            return False
+    return True
+
+
+def _segment_clear(ax, ay, bx, by, mi: Mission, keep, count=None) -> bool:
+    """Whether every point of the segment from (ax, ay) to (bx, by) keeps at least ``keep -
+    CLEAR_TOL`` from every obstacle (``keep > 0``), from the exact distances.
+
+    A rectangle: the segment must not meet it (the clip) and, the two being disjoint convex
+    polygons, their distance is the smallest of the endpoints' distances to the box and the
+    corners' distances to the segment. A disc: its centre's distance to the segment, less
+    the radius. Stops at the first obstacle too close; counts the obstacles tested.
+    """
+    keep -= CLEAR_TOL
+    if keep <= 0.0:
+        return False  # (not met by the rule: r* + margin > 0) let the samples decide
+    k2 = keep * keep
+    dx, dy = bx - ax, by - ay
+    den = dx * dx + dy * dy
+    for xmin, xmax, ymin, ymax in mi.rects:
+        if count is not None:
+            count.segment_tests += 1
+        for px, py in ((ax, ay), (bx, by)):
+            ex = px - min(max(px, xmin), xmax)
+            ey = py - min(max(py, ymin), ymax)
+            if ex * ex + ey * ey < k2:
+                return False
+        if _meets_box(ax, ay, dx, dy, xmin, xmax, ymin, ymax):
+            return False
+        for px, py in ((xmin, ymin), (xmin, ymax), (xmax, ymin), (xmax, ymax)):
+            if _segment_d2(px, py, ax, ay, dx, dy, den) < k2:
+                return False
+    for px, py, rad in mi.circles:
+        if count is not None:
+            count.segment_tests += 1
+        need = rad + keep
+        if _segment_d2(px, py, ax, ay, dx, dy, den) < need * need:
+            return False
+    return True
+
+
 def _eta_goal(cx, cy, mi: Mission, count=None) -> float:
     sx, sy = mi.target
     r = mi.radius
@@ -207,6 +283,20 @@ def _eta_goal(cx, cy, mi: Mission, count=None) -> float:
     else:
         hx, hy = 1.0, 0.0
     ahead = min(mi.lookahead, dist)
+    width = math.inf
+    enough = r + mi.margin
+    if not _segment_clear(cx - r * hx, cy - r * hy, cx + ahead * hx, cy + ahead * hy, mi,
+                          enough + PATH_PAD, count):  # fmt: skip
+        width = _path_width(cx, cy, hx, hy, ahead, mi, count)
+    goal = min(1.0, max(mi.eta_min, (width - mi.margin) / r))
+    w = _smoothstep((dist - HOVER_INNER * r) / ((HOVER_OUTER - HOVER_INNER) * r))
+    return goal + (1.0 - goal) * (1.0 - w)
+
+
+def _path_width(cx, cy, hx, hy, ahead, mi: Mission, count=None) -> float:
+    """The eta rule's free half-width from its samples along (hx, hy) (the segment test
+    failed: some sample may be closer than ``r* + margin``)."""
+    r = mi.radius
     width = math.inf
     for i in range(mi.samples):
         t = -r + (ahead + r) * i / (mi.samples - 1)
@@ -224,9 +314,7 @@ def _eta_goal(cx, cy, mi: Mission, count=None) -> float:
         width = min(width, best)
         if width <= mi.margin + mi.eta_min * r:
             break  # eta_min whatever follows
-    goal = min(1.0, max(mi.eta_min, (width - mi.margin) / r))
-    w = _smoothstep((dist - HOVER_INNER * r) / ((HOVER_OUTER - HOVER_INNER) * r))
-    return goal + (1.0 - goal) * (1.0 - w)
+    return width
 
 
 def _crlb(q, mi: Mission) -> float:
@@ -322,9 +410,26 @@ def plain_missions(mi: Mission, seeds) -> list[dict]:
 
 
 def count_paper_work(mi: Mission, seed: int = 0) -> dict[str, float]:
-    """Obstacle-distance evaluations (all, and those of the eta rule), eta-rule sample
-    points and repulsion terms per step, averaged over one run of the instrumented plain
-    baseline (the same algorithm as crlbswarm's kernel, docs/performance.md)."""
+    """The work of one step of the paper mission, counted on the instrumented plain
+    baseline (the same algorithm as crlbswarm's kernel, docs/performance.md).
+
+    Parameters
+    ----------
+    mi : Mission
+        The mission.
+    seed : int, optional
+        The run counted (its draws, as :func:`draw`).
+
+    Returns
+    -------
+    dict of str to float
+        Per step, averaged over the run: ``evaluations``, the point-to-obstacle distance
+        evaluations (all purposes); ``eta_evaluations``, those of the eta rule's samples
+        (only in the steps where its segment test fails); ``samples``, the eta rule's
+        sample points; ``repulsion_terms``, the obstacles within ``l_safe`` of a UAV or of
+        the formation's disc; ``segment_tests``, the eta rule's segment-to-obstacle tests
+        (one per obstacle and step, fewer where the test stops at an obstacle too close).
+    """
     count = _Counter()
     plain_mission(mi, *draw(mi, seed), count=count)
     n = mi.steps
@@ -333,6 +438,7 @@ def count_paper_work(mi: Mission, seed: int = 0) -> dict[str, float]:
         "eta_evaluations": count.eta_evaluations / n,
         "samples": count.samples / n,
         "repulsion_terms": count.repulsion_terms / n,
+        "segment_tests": count.segment_tests / n,
     }
 
 
@@ -343,6 +449,10 @@ class _Arrays:
     def __init__(self, mi: Mission) -> None:
         self.rects = np.array(mi.rects, dtype=float).reshape(-1, 4)
         self.circles = np.array(mi.circles, dtype=float).reshape(-1, 3)
+        xmin, xmax, ymin, ymax = self.rects.T
+        # the rectangles' corners (4R,), for the segment test
+        self.corner_x = np.concatenate((xmin, xmin, xmax, xmax))
+        self.corner_y = np.concatenate((ymin, ymax, ymin, ymax))
         lap = np.zeros((mi.m, mi.m))
         for m, nb in enumerate(mi.neighbours):
             for p in nb:
@@ -432,9 +542,63 @@ def _smoothstep_np(t):
     return np.where(t >= 1.0, 1.0, np.where(t <= 0.0, 0.0, t * t * (3.0 - 2.0 * t)))
 
 
+def _segment_d2_np(px, py, ax, ay, dx, dy, den):
+    """Squared distances from the points (px, py) to the segments from (ax, ay) to (ax + dx,
+    ay + dy), ``den = dx^2 + dy^2`` (broadcast)."""
+    pos = den > 0.0
+    t = ((px - ax) * dx + (py - ay) * dy) / np.where(pos, den, 1.0)
+    t = np.where(pos, np.minimum(np.maximum(t, 0.0), 1.0), 0.0)
+    ex = ax + t * dx - px
+    ey = ay + t * dy - py
+    return ex * ex + ey * ey
+
+
+def _segment_clear_np(ax, ay, bx, by, arr: _Arrays, keep):
+    """Whether each segment from (ax, ay) to (bx, by) (arrays (B,)) keeps at least ``keep -
+    CLEAR_TOL`` from every obstacle (``keep > 0``): the test of :func:`_segment_clear` on all
+    segments and all obstacles at once, arrays (B, R) and (B, C)."""
+    clear = np.ones(np.shape(ax), dtype=bool)
+    keep -= CLEAR_TOL
+    if keep <= 0.0:
+        return ~clear
+    k2 = keep * keep
+    dx, dy = bx - ax, by - ay
+    den = dx * dx + dy * dy
+    ax1, ay1, dx1, dy1, den1 = ax[:, None], ay[:, None], dx[:, None], dy[:, None], den[:, None]
+    if arr.rects.shape[0]:
+        xmin, xmax, ymin, ymax = arr.rects.T  # (R,)
+        # the endpoints' distances to the boxes, (2, B, R)
+        ex = np.stack((ax, bx))[..., None]
+        ey = np.stack((ay, by))[..., None]
+        ox = ex - np.minimum(np.maximum(ex, xmin), xmax)
+        oy = ey - np.minimum(np.maximum(ey, ymin), ymax)
+        near = (ox * ox + oy * oy < k2).any(axis=(0, 2))
+        # Liang-Barsky on the four sides at once, (4, B, R): t0 only grows and t1 only
+        # shrinks, so t0 <= t1 at the end is the sequential test
+        side_p = np.stack((-dx1, dx1, -dy1, dy1))
+        side_q = np.stack((ax1 - xmin, xmax - ax1, ay1 - ymin, ymax - ay1))
+        zero = side_p == 0.0
+        ratio = side_q / np.where(zero, 1.0, side_p)
+        t0 = np.where(side_p < 0.0, ratio, 0.0).max(axis=0)
+        t1 = np.where(side_p > 0.0, ratio, 1.0).min(axis=0)
+        meets = (t0 <= t1) & ~(zero & (side_q < 0.0)).any(axis=0)  # (parallel and outside)
+        near |= meets.any(axis=-1)
+        # the corners' distances to the segments, (B, 4R)
+        d2 = _segment_d2_np(arr.corner_x, arr.corner_y, ax1, ay1, dx1, dy1, den1)
+        near |= (d2 < k2).any(axis=-1)
+        clear &= ~near
+    if arr.circles.shape[0]:
+        px, py, rad = arr.circles.T  # (C,)
+        need = rad + keep
+        d2 = _segment_d2_np(px, py, ax1, ay1, dx1, dy1, den1)  # (B, C)
+        clear &= (d2 >= need * need).all(axis=-1)
+    return clear
+
+
 def _eta_goal_np(cx, cy, mi: Mission, arr: _Arrays):
-    """The eta rule for every run: centre clearances of all samples at once, then the
-    lateral scan only for the samples that need it (compacted)."""
+    """The eta rule for every run: the segment test of all runs at once; for the runs whose
+    segment does not clear, the centre clearances of all samples at once, then the lateral
+    scan only for the samples that need it (compacted)."""
     sx, sy = mi.target
     r = mi.radius
     hx, hy = sx - cx, sy - cy
@@ -444,6 +608,23 @@ def _eta_goal_np(cx, cy, mi: Mission, arr: _Arrays):
     hx = np.where(pos, hx / safe, 1.0)
     hy = np.where(pos, hy / safe, 0.0)
     ahead = np.minimum(mi.lookahead, dist)
+    enough = r + mi.margin
+    clear = _segment_clear_np(
+        cx - r * hx, cy - r * hy, cx + ahead * hx, cy + ahead * hy, arr, enough + PATH_PAD
+    )
+    w = np.full(cx.shape, np.inf)
+    (rest,) = np.nonzero(~clear)
+    if rest.size:
+        w[rest] = _path_width_np(cx[rest], cy[rest], hx[rest], hy[rest], ahead[rest], mi, arr)
+    goal = np.minimum(1.0, np.maximum(mi.eta_min, (w - mi.margin) / r))
+    beta = _smoothstep_np((dist - HOVER_INNER * r) / ((HOVER_OUTER - HOVER_INNER) * r))
+    return goal + (1.0 - goal) * (1.0 - beta)
+
+
+def _path_width_np(cx, cy, hx, hy, ahead, mi: Mission, arr: _Arrays):
+    """The eta rule's free half-width of each run from its samples (runs whose segment
+    test failed)."""
+    r = mi.radius
     frac = np.arange(mi.samples) / (mi.samples - 1)
     t = -r + (ahead + r)[:, None] * frac  # (B, S)
     px = cx[:, None] + t * hx[:, None]
@@ -456,10 +637,7 @@ def _eta_goal_np(cx, cy, mi: Mission, arr: _Arrays):
         lx = px[b_idx, s_idx][:, None] - o * hy[b_idx][:, None]
         ly = py[b_idx, s_idx][:, None] + o * hx[b_idx][:, None]
         width[b_idx, s_idx] = _clearance_np(lx, ly, arr).max(-1)
-    w = width.min(-1)
-    goal = np.minimum(1.0, np.maximum(mi.eta_min, (w - mi.margin) / r))
-    beta = _smoothstep_np((dist - HOVER_INNER * r) / ((HOVER_OUTER - HOVER_INNER) * r))
-    return goal + (1.0 - goal) * (1.0 - beta)
+    return width.min(-1)
 
 
 def numpy_missions(mi: Mission, seeds, keep_trajectories: bool = False) -> dict:

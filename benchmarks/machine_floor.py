@@ -10,11 +10,15 @@ Two measured rates (Numba, double precision), single-threaded and on all threads
   each (far beyond L2), counted as 24 bytes per element (STREAM's convention: the
   write-allocate read is not counted, so the figure is on the high side).
 
-The work of one UAV-step of a mission (:func:`paper_step_work`, :func:`swarm_step_work`) is
-counted in flops and bytes from the laws (docs/performance.md, "Honest baselines and the
-machine floor"); the floor time is the roofline ``max(flops / flop rate, bytes /
-bandwidth)``. Every division, square root, min and max counts as one flop, like a
-multiply-add's half, although they cost more: the floor is optimistic, a lower bound.
+The work of one UAV-step of a mission (:func:`step_work`) is counted in flops and bytes
+from the laws and the algorithm of crlbswarm's kernel (docs/performance.md, "Honest
+baselines and the machine floor"): the control laws, the obstacle distances, the eta rule
+(its segment test every step, its samples only where the test fails), the CRLB's Fisher
+terms and the disturbance drawn in the kernel (a Philox4x32-10 block and Box-Muller per
+UAV-step); the floor time is the roofline ``max(flops / flop rate, bytes / bandwidth)``.
+Every division, comparison, square root, logarithm, min and max counts as one flop, like a
+multiply-add's half, and so does each 32-bit integer operation of the generator, although
+most cost more: the floor is optimistic, a lower bound.
 """
 
 from __future__ import annotations
@@ -115,6 +119,37 @@ FLOPS_PER_FORMATION = 50
 #: Per sample point of the eta rule: its position on the path or across it (4).
 FLOPS_PER_SAMPLE = 4
 
+#: The eta rule's segment test (its whole sampled path against each obstacle, every step),
+#: once per step: the two endpoints (8), the direction and its squared length (5), the
+#: padded and rounded threshold and its square (4) and its sign test (1).
+FLOPS_SEGMENT_SETUP = 18
+#: Flops of one squared point-to-segment distance and its test: the offset (2), the dot
+#: product (3), the degenerate-segment test (1), the division (1), the clamp to [0, 1] (2),
+#: the nearest point's offset (6), its squared length (3) and the comparison (1).
+FLOPS_POINT_SEGMENT = 19
+#: Per rectangle: two endpoint-to-box distances and tests (2 x (clamp 4, offset 2, squared
+#: length 3, comparison 1), 20), the Liang-Barsky clip (4 sides x (offset 1, two sign tests
+#: 2, division 1, min or max 1, the t0 > t1 test 1), 24; all four sides, although it often
+#: stops earlier) and the four corners' distances to the segment (4 x 19): 120. The test
+#: stops at the first too close; the usual case (the segment clears) runs all of it.
+FLOPS_SEGMENT_RECT = 20 + 24 + 4 * FLOPS_POINT_SEGMENT
+#: Per circle: the centre's distance to the segment (19) and the threshold radius +
+#: keep, squared (2).
+FLOPS_SEGMENT_CIRCLE = FLOPS_POINT_SEGMENT + 2
+
+#: Rounds of the Philox4x32-10 block the kernel draws per UAV-step (its motion disturbance).
+PHILOX_ROUNDS = 10
+#: Per round: two 32x32 -> 64-bit multiplies and about six xor, shift, mask and key-bump
+#: integer operations, each counted as one flop-equivalent.
+FLOPS_PHILOX_ROUND = 8
+#: Box-Muller on the block: the logarithm, the square root and the sine-cosine pair (one
+#: flop each, although the kernel's pair is two Taylor polynomials of about 30 flops), and
+#: about six multiplies and adds (the uniform's scale, -2 ln u, r cos, r sin and the two
+#: products by sigma). Not counted: the shifts and ors that make the 53-bit uniforms.
+FLOPS_BOX_MULLER = 9
+#: The in-kernel draw of one UAV-step: one Philox4x32-10 block and Box-Muller (89).
+FLOPS_RANDOM_DRAW = PHILOX_ROUNDS * FLOPS_PHILOX_ROUND + FLOPS_BOX_MULLER
+
 #: The smallest separation (a metric of every step): all pairs for a small swarm, 4 flops a
 #: pair, 2 (M - 1) per UAV (pass as ``extra_flops``); for a large swarm a cell list of about
 #: one UAV per cell: bounding box (4), cell index (6), about 4.5 pair distances (18).
@@ -123,11 +158,12 @@ FLOPS_SEPARATION = 28
 #: written and read once: 64), counted only with ``large_graph``.
 BYTES_SEPARATION = 64
 
-#: Bytes per UAV-step: the kernel reads q_k (16) and v_k (16) and the pre-drawn disturbance
-#: n_k (16), writes q_{k+1} (16) and v_{k+1} (16); the driver draws the disturbance (writes
-#: 16) and the CRLB pass reads the positions back (16). Graph (CSR) and obstacles are a few
-#: hundred bytes per step, in cache. Not counted: the metrics per step (a few per formation).
-BYTES_PER_UAV_STEP = 112
+#: Bytes per UAV-step: the kernel reads q_k (16) and v_k (16) and writes q_{k+1} (16) and
+#: v_{k+1} (16). The disturbance is drawn in the kernel (no array written by the driver and
+#: read back) and the CRLB's Fisher terms are summed there too (no pass reading the positions
+#: back). Graph (CSR) and obstacles are a few hundred bytes per step, in cache. Not counted:
+#: the metrics per step (a few per formation).
+BYTES_PER_UAV_STEP = 64
 #: Per neighbour, for a graph that does not fit in cache (large swarms): one CSR index (8)
 #: and the neighbour's position and velocity (32, mostly cache hits along a ring: 0 here).
 BYTES_PER_NEIGHBOUR = 8
@@ -143,22 +179,65 @@ def step_work(
     repulsion_terms: float,
     extra_flops: float = 0.0,
     large_graph: bool = False,
+    segment_tests: float | None = None,
 ) -> dict[str, float]:
-    """Flops and bytes of one UAV-step, given the obstacle-distance evaluations of one
-    step (all UAVs, all purposes), the eta rule's sample points per step, and the
-    repulsion terms (obstacles within l_safe) per step."""
+    """Flops and bytes of one UAV-step of a mission.
+
+    Parameters
+    ----------
+    m_uavs : int
+        UAVs of the formation.
+    neighbours : float
+        Neighbours per UAV (a ring: 2).
+    n_rects, n_circles : int
+        Rectangles and circles of the scenario.
+    evaluations : float
+        Point-to-obstacle distance evaluations per step, all UAVs and all purposes
+        (repulsion, clearance, the eta rule's samples where its segment test fails).
+    samples : float
+        The eta rule's sample points per step.
+    repulsion_terms : float
+        Obstacles within ``l_safe`` per step (each adds a repulsion term).
+    extra_flops : float, optional
+        Further flops per UAV-step (the smallest separation, :data:`FLOPS_SEPARATION`).
+    large_graph : bool, optional
+        Whether the graph and the separation's cell list fall out of cache (large swarms:
+        :data:`BYTES_PER_NEIGHBOUR` and :data:`BYTES_SEPARATION` per UAV-step).
+    segment_tests : float or None, optional
+        The eta rule's segment-to-obstacle tests per step (``count_paper_work``'s
+        ``segment_tests``); None: one per obstacle and step, the usual case of a segment
+        that clears (0 when the eta rule is off).
+
+    Returns
+    -------
+    dict of str to float
+        ``evaluations_per_uav_step``; ``flops`` and ``bytes`` per UAV-step.
+
+    Notes
+    -----
+    Per UAV-step, every UAV: :data:`FLOPS_PER_UAV`, :data:`FLOPS_PER_NEIGHBOUR` per
+    neighbour and the draw of its disturbance, :data:`FLOPS_RANDOM_DRAW`; per step, spread
+    over the UAVs: the evaluations, samples, repulsion terms and segment tests (with
+    :data:`FLOPS_SEGMENT_SETUP` once if any) and :data:`FLOPS_PER_FORMATION`.
+    """
     n_obs = n_rects + n_circles
     per_eval = (n_rects * FLOPS_RECT_DISTANCE + n_circles * FLOPS_CIRCLE_DISTANCE) / n_obs
+    per_test = (n_rects * FLOPS_SEGMENT_RECT + n_circles * FLOPS_SEGMENT_CIRCLE) / n_obs
+    if segment_tests is None:
+        segment_tests = float(n_obs)
+    segment_flops = segment_tests * per_test + (FLOPS_SEGMENT_SETUP if segment_tests else 0)
     flops = (
         (
             evaluations * per_eval
             + samples * FLOPS_PER_SAMPLE
             + repulsion_terms * FLOPS_REPULSION_TERM
+            + segment_flops
             + FLOPS_PER_FORMATION
         )
         / m_uavs
         + neighbours * FLOPS_PER_NEIGHBOUR
         + FLOPS_PER_UAV
+        + FLOPS_RANDOM_DRAW
         + extra_flops
     )
     nbytes = BYTES_PER_UAV_STEP

@@ -112,7 +112,8 @@ def _value(rng: random.Random) -> Any:
 def _scenario_mutation(rng: random.Random, data: dict[str, Any]) -> str:
     """Mutate a scenario document in place; return a description."""
     targeted = [
-        ("uavs.count", rng.choice([10**5, 10**6, 10**7, 10**9])),
+        # (10**5 UAVs is a valid swarm that takes minutes to fly: the limit plus one is not)
+        ("uavs.count", rng.choice([10**5 + 1, 10**6, 10**7, 10**9])),
         ("eta.samples", rng.choice([10**6, 10**9, 10**12])),
         ("time.duration", rng.choice([1e308, 1e15, 1e9])),
         ("time.step", rng.choice([1e-300, 5e-324, 1e-9, 1e300])),

@@ -142,7 +142,8 @@ def test_scenario_design_is_the_one_the_scenario_flies(capsys, tmp_path):
     seed), and a scenario with several targets is allocated over all of them."""
     data = load_scenario("paper_safe").model_dump()
     data.update(target=[52.0, 88.0])
-    data["formation"].update(criterion="D", seed=5, max_radius=16.0, starts=4)
+    # (the D-optimum is not unique; with seed 2 the design found leaves the route its room)
+    data["formation"].update(criterion="D", seed=2, max_radius=16.0, starts=4)
     sc = Scenario.from_dict(data)
     path = tmp_path / "blocked.toml"
     path.write_text(sc.to_toml())

@@ -356,6 +356,16 @@ def _add_simulate(sub: Any) -> None:
         action="store_true",
         help="do not keep positions and velocities (metrics and time series only)",
     )
+    _option(
+        simulate,
+        fields,
+        "--trajectory-stride",
+        field="trajectory_stride",
+        type=int,
+        default=1,
+        metavar="N",
+        help="keep positions and velocities every N steps and at the last (default 1)",
+    )
     simulate.add_argument(
         "--force",
         action="store_true",
@@ -778,8 +788,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     check_output_folder(args.out, "folder", new=True, overwrite=args.force)
     keep = not args.no_trajectories
     steps, count = scenario.time.steps, scenario.uavs.count
-    check_memory(runs, steps, count, keep)
-    size = result_nbytes(runs, steps, count, keep)
+    stride = _v.count(args.trajectory_stride, "trajectory_stride", 1, max(steps, 1))
+    check_memory(runs, steps, count, keep, stride)
+    size = result_nbytes(runs, steps, count, keep, stride)
     if size > LARGE_OUTPUT:  # said before the run (stdout: stderr is kept for one error line)
         print(
             f"note: the results will take about {size / 1e9:.1f} GB before compression"
@@ -819,7 +830,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         result = simulate(
             scenario,
             seeds=range(first, first + runs),
-            keep_trajectories=not args.no_trajectories,
+            keep_trajectories=keep,
+            trajectory_stride=stride,
             progress=lambda done: bar.update(done - bar.n),
         )
     for path in result.save(args.out, overwrite=args.force):

@@ -56,14 +56,17 @@ from .errors import FieldError
 from .geometry import clip_norm
 from .graphs import Adjacency, auto_consensus_step, auto_formation_step
 from .obstacles import Obstacles, check_obstacles, clearance_at, repulsion_at
+from .planning import segment_clear
 
 __all__ = [
     "ControlGains",
     "EtaRule",
+    "consensus_rows",
     "consensus_step",
     "consensus_update",
     "control_cost",
     "corridor_width",
+    "cost_rows",
     "eta_from_width",
     "eta_goal",
     "eta_rate_limit",
@@ -71,11 +74,13 @@ __all__ = [
     "eta_update",
     "formation_cost",
     "formation_input",
+    "formation_rows",
     "formation_update",
     "leader_guidance",
     "motion_model",
     "reference_velocity",
     "repulsion",
+    "route_clear",
     "route_eta_goal",
     "route_point",
     "smoothstep",
@@ -276,6 +281,11 @@ def _check_rule(rule: object) -> EtaRule:
 #: Points sampled across the path (odd, so the path itself is one) by the eta rule.
 LATERAL_SAMPLES = 9
 
+#: Margin, m, by which the eta rule's path must clear the obstacles for its samples to be
+#: skipped in one pass (far above the rounding of a sample's position and clearance, so
+#: the shortcut never changes the rule's result).
+PATH_PAD = 1e-6
+
 #: The eta rule near the target, in units of the formation radius R: within HOVER_INNER R
 #: of the target the goal is 1 (the validated slots of F* are clear), beyond HOVER_OUTER R
 #: it is the free-width rule, and in between a smooth blend, so the rule is continuous.
@@ -294,7 +304,14 @@ ARRIVAL_OUTER = 0.5
 def consensus_update(v, v_ref, leader, indptr, indices, gamma, out):
     """Corrected eq. (14) on one formation: followers step toward their neighbours; the
     leader holds ``v_ref``. Writes ``out`` (M, 2). Compiled kernel, no checks."""
-    for m in range(v.shape[0]):
+    consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, 0, v.shape[0])
+
+
+@njit(cache=True, _nrt=False)
+def consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, lo, hi):
+    """:func:`consensus_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
+    swarm; the law's one writing)."""
+    for m in range(lo, hi):
         if m == leader:
             out[m, 0] = v_ref[0]
             out[m, 1] = v_ref[1]
@@ -317,7 +334,14 @@ def consensus_update(v, v_ref, leader, indptr, indices, gamma, out):
 def formation_update(q, delta, eta, eps, indptr, indices, out):
     """Eq. (19) without repulsion on one formation:
     ``-eps sum_p a_mp (q_m - q_p - eta (delta_m - delta_p))``. Writes ``out`` (M, 2)."""
-    for m in range(q.shape[0]):
+    formation_rows(q, delta, eta, eps, indptr, indices, out, 0, q.shape[0])
+
+
+@njit(cache=True, _nrt=False)
+def formation_rows(q, delta, eta, eps, indptr, indices, out, lo, hi):
+    """:func:`formation_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
+    swarm; the law's one writing)."""
+    for m in range(lo, hi):
         sx = 0.0
         sy = 0.0
         for j in range(indptr[m], indptr[m + 1]):
@@ -336,7 +360,7 @@ def motion_model(q, u, u_r, v, dt, n):
     return q + u + u_r + v * dt + n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def reference_velocity(
     qx, qy, gx, gy, cx, cy, gain, cruise, tvx, tvy, rects, circles, e_r, l_safe, footprint, dt
 ):
@@ -392,7 +416,7 @@ def eta_from_width(width, margin, radius, eta_min, dist):
     return goal + (1.0 - goal) * (1.0 - w)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_samples, eta_min):
     """Free half-width of the corridor ahead of the formation on the straight line to the
     target -> scale in [eta_min, 1], blended to 1 near the target (:func:`eta_target`).
@@ -411,6 +435,11 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sample
     width = math.inf
     enough = radius + margin  # a half-width this large allows eta = 1
     floor = margin + eta_min * radius  # a half-width this small forces eta = eta_min
+    if segment_clear(cx - radius * hx, cy - radius * hy, cx + ahead * hx, cy + ahead * hy,
+                     rects, circles, enough + PATH_PAD):  # fmt: skip
+        # Every sample is at least ``enough`` from every obstacle: each would be skipped
+        # below, so one pass over the obstacles gives the same result (the usual case).
+        return eta_from_width(width, margin, radius, eta_min, dist)
     for i in range(n_samples):
         t = -radius + (ahead + radius) * i / (n_samples - 1)
         px = cx + t * hx
@@ -423,7 +452,7 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, margin, lookahead, n_sample
     return eta_from_width(width, margin, radius, eta_min, dist)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, margin,
                    lookahead, n_samples, eta_min, planned=False):  # fmt: skip
     r"""The eta goal as flown: :func:`eta_goal` (the straight line to the target, the best
@@ -454,6 +483,9 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, 
     ahead = min(lookahead, length)
     width = math.inf
     floor = margin + eta_min * radius
+    if route_clear(cx, cy, hx, hy, k, nodes, next_node, radius, ahead, rects, circles,
+                   radius + margin + PATH_PAD):  # fmt: skip
+        return 1.0  # every sample's clearance allows eta = 1 (and the blend keeps 1)
     for s in range(n_samples):
         t = -radius + (ahead + radius) * s / (n_samples - 1)
         if k >= 0:
@@ -470,7 +502,32 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, 
     return goal
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
+def route_clear(cx, cy, hx, hy, k, nodes, next_node, behind, ahead, rects, circles, keep):
+    """Whether the route from ``behind`` m behind the centre (cx, cy) to ``ahead`` m along it
+    (through ``nodes[k]`` and its successors; ``k < 0``: the straight line along (hx, hy))
+    keeps ``keep`` m (less :data:`crlbswarm.planning.CLEAR_TOL`) from every obstacle: the
+    samples of :func:`route_eta_goal` all lie on it. Compiled kernel."""
+    if k < 0:
+        return segment_clear(cx - behind * hx, cy - behind * hy, cx + ahead * hx,
+                             cy + ahead * hy, rects, circles, keep)  # fmt: skip
+    bx, by, _, _ = route_point(cx, cy, k, nodes, next_node, -behind)
+    if not segment_clear(bx, by, cx, cy, rects, circles, keep):
+        return False
+    ax, ay = cx, cy
+    length = 0.0
+    j = k
+    while True:  # whole legs: a longer path is only more demanding
+        if not segment_clear(ax, ay, nodes[j, 0], nodes[j, 1], rects, circles, keep):
+            return False
+        length += math.hypot(nodes[j, 0] - ax, nodes[j, 1] - ay)
+        if length >= ahead or next_node[j] < 0:
+            return True
+        ax, ay = nodes[j, 0], nodes[j, 1]
+        j = next_node[j]
+
+
+@njit(cache=True, _nrt=False)
 def route_point(cx, cy, k, nodes, next_node, t):
     """The point at arc length ``t`` along the route from (cx, cy) through ``nodes[k]`` and
     its successors (``t < 0``: behind, on the first leg's line), and the unit direction of
@@ -500,8 +557,15 @@ def eta_rate_limit(eta, goal, max_step):
 def control_cost(q, q_next, delta, v_ref, dt, indptr, indices):
     """Eq. (15) summed over UAVs on one formation, with the nominal displacements
     ``delta_pm = delta_m - delta_p`` (:func:`formation_cost`). Compiled kernel."""
+    return cost_rows(q, q_next, delta, v_ref, dt, indptr, indices, 0, q.shape[0])
+
+
+@njit(cache=True, _nrt=False)
+def cost_rows(q, q_next, delta, v_ref, dt, indptr, indices, lo, hi):
+    """The terms of :func:`control_cost` of the UAVs ``lo .. hi - 1``, summed in order (a
+    block of a large swarm; the law's one writing)."""
     total = 0.0
-    for m in range(q.shape[0]):
+    for m in range(lo, hi):
         for j in range(indptr[m], indptr[m + 1]):
             p = indices[j]
             ex = q[m, 0] - q[p, 0] - (delta[m, 0] - delta[p, 0])

@@ -35,6 +35,7 @@ dominated by rounding error and no finite value would be meaningful.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
@@ -44,11 +45,13 @@ from .radar import Radar, check_radar
 
 __all__ = [
     "crlb",
+    "crlb_from_entries",
     "crlb_from_fim",
     "d_optimality",
     "d_optimality_from_fim",
     "e_optimality",
     "e_optimality_from_fim",
+    "fim_entries_at",
     "fisher_information",
     "range_information",
 ]
@@ -103,28 +106,49 @@ def range_information(distance: ArrayLike, radar: Radar = _DEFAULT_RADAR) -> np.
 def _fim_entries(
     uav_xy: ArrayLike, target_xy: ArrayLike, altitude: ArrayLike, radar: Radar
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)."""
+    """Validated ``(J_xx, J_yy, J_xy)``, each of the broadcast batch shape, eq. (9)
+    (:func:`fim_entries_at` on every formation of the batch)."""
     q, s, h = check_scene(uav_xy, target_xy, altitude)
-    a = check_radar(radar, q.shape[-2])
-    # Contiguous per-axis offsets s - q_m, shape (..., M); the in-place updates below keep
-    # the number of full-size temporaries small (this is the hot path of every sweep).
-    dx = s[..., None, 0] - q[..., 0]
-    dy = s[..., None, 1] - q[..., 1]
-    d2 = dx * dx
-    d2 += dy * dy
-    d2 = d2 + (h * h)[..., None]  # not in place: the altitude may widen the batch shape
-    # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
-    # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
-    w = a / d2
-    w += 8.0
-    w /= d2
-    w /= d2
-    wx = w * dx
-    jxx = np.einsum("...m,...m->...", wx, dx)
-    jxy = np.einsum("...m,...m->...", wx, dy)
-    w *= dy
-    jyy = np.einsum("...m,...m->...", w, dy)
+    m_uavs = q.shape[-2]
+    a = np.broadcast_to(np.asarray(check_radar(radar, m_uavs), dtype=np.float64), (m_uavs,))
+    batch = np.broadcast_shapes(q.shape[:-2], s.shape[:-1], h.shape)
+    qb = np.broadcast_to(q, (*batch, m_uavs, 2)).reshape(-1, m_uavs, 2)
+    sb = np.broadcast_to(s, (*batch, 2)).reshape(-1, 2)
+    hb = np.broadcast_to(h, batch).reshape(-1)
+    out = np.empty((qb.shape[0], 3))
+    _fim_batch(qb, sb, hb, np.ascontiguousarray(a), out)
+    return out[:, 0].reshape(batch), out[:, 1].reshape(batch), out[:, 2].reshape(batch)
+
+
+@njit(cache=True, _nrt=False)
+def fim_entries_at(q, sx, sy, altitude, snr):
+    r"""Eq. (9) for one formation: ``(J_xx, J_yy, J_xy)`` of the UAVs ``q`` (M, 2) at
+    ``altitude`` about the target (sx, sy), with each UAV's :math:`A_m` in ``snr`` (M,):
+    :math:`\mathbf J_s = \sum_m (A_m/d_m^4 + 8/d_m^2)(\mathbf s - \mathbf q_m)
+    (\mathbf s - \mathbf q_m)^\top / d_m^2`. Compiled kernel, no checks: the one
+    writing of the law, called by :func:`fisher_information` and the mission kernel."""
+    h2 = altitude * altitude
+    jxx = 0.0
+    jyy = 0.0
+    jxy = 0.0
+    for m in range(q.shape[0]):
+        dx = sx - q[m, 0]
+        dy = sy - q[m, 1]
+        d2 = dx * dx + dy * dy + h2
+        # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
+        # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
+        w = (snr[m] / d2 + 8.0) / d2 / d2
+        wx = w * dx
+        jxx += wx * dx
+        jxy += wx * dy
+        jyy += w * dy * dy
     return jxx, jyy, jxy
+
+
+@njit(cache=True)
+def _fim_batch(q, s, h, snr, out):
+    for b in range(q.shape[0]):
+        out[b, 0], out[b, 1], out[b, 2] = fim_entries_at(q[b], s[b, 0], s[b, 1], h[b], snr)
 
 
 def fisher_information(
@@ -333,6 +357,28 @@ def crlb(
     5.3476
     """
     return _a_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
+
+
+def crlb_from_entries(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
+    r"""CRLB, eq. (10), from the entries of FIMs, without checks (the mission driver's path
+    from the FIMs its kernel computes, :func:`fim_entries_at`).
+
+    Parameters
+    ----------
+    jxx : ndarray
+        :math:`J_{xx}` of symmetric positive semi-definite FIMs, m^-2.
+    jyy : ndarray
+        :math:`J_{yy}`, of the same shape.
+    jxy : ndarray
+        :math:`J_{xy}`, of the same shape.
+
+    Returns
+    -------
+    ndarray
+        :math:`\operatorname{tr}\mathbf J_s^{-1}`, m^2 (``+inf`` when singular, as
+        :func:`crlb`).
+    """
+    return _a_criterion(jxx, jyy, jxy)
 
 
 def d_optimality(

@@ -38,10 +38,13 @@ from numba import njit, prange
 
 from ._validation import MAX_COORDINATE
 from .control import (
+    consensus_rows,
     consensus_update,
     control_cost,
+    cost_rows,
     eta_goal,
     eta_rate_limit,
+    formation_rows,
     formation_update,
     motion_model,
     reference_velocity,
@@ -49,7 +52,9 @@ from .control import (
     route_point,
     travel_weight,
 )
+from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
+from .fisher import fim_entries_at
 from .obstacles import clearance_at, repulsion_at
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
@@ -61,6 +66,7 @@ __all__ = [
     "DIVERGENCE_LIMIT",
     "FILTER_ITERATIONS",
     "REPLAN_PERIOD",
+    "UAV_BLOCK",
     "GroupArrays",
     "GroupOutputs",
     "MissionConstants",
@@ -68,16 +74,25 @@ __all__ = [
     "RunOutputs",
     "SceneArrays",
     "carrot_point",
-    "control_step",
+    "input_block",
+    "keep_row",
     "leader_goal",
-    "move_uavs",
+    "leader_step",
+    "motion_block",
+    "next_eta",
+    "obstacle_pass",
     "passed_nodes",
     "run_batch",
     "run_group_batch",
     "run_groups",
     "run_mission",
+    "safe_displacement",
     "sense_target",
+    "state_block",
     "steering_footprint",
+    "step_motion",
+    "step_state",
+    "update_block",
 ]
 
 #: A run whose UAV has a coordinate beyond this, m, or at NaN, diverged: it left the
@@ -92,6 +107,11 @@ REPLAN_PERIOD = 0.5
 
 #: Gauss-Newton iterations of the filter's range update.
 FILTER_ITERATIONS = 3
+
+#: UAVs per block of the per-UAV work of a step (:func:`run_mission`): the unit of work of
+#: a thread for one large swarm, and the unit of the partial sums (added in block order,
+#: so the result does not depend on the threads).
+UAV_BLOCK = 256
 
 
 class MissionConstants(NamedTuple):
@@ -141,6 +161,11 @@ class MissionConstants(NamedTuple):
         0 for a regular polygon; the slot offsets ``RunInputs.delta`` are taken from it.
     centre_y : float
         The same, y, m.
+    sigma : float
+        Standard deviation of the motion disturbance per axis and step, m.
+    stride : int
+        The trajectories are kept every this many steps (and at the last step); 0: not
+        kept (:func:`crlbswarm.results.kept_rows`).
     """
 
     dt: float
@@ -163,6 +188,8 @@ class MissionConstants(NamedTuple):
     steer_radius: float
     centre_x: float
     centre_y: float
+    sigma: float
+    stride: int
 
 
 class SceneArrays(NamedTuple):
@@ -190,6 +217,8 @@ class SceneArrays(NamedTuple):
         Their distance to the route's goal along the roadmap, m.
     next_node : ndarray of int64, shape (N,)
         The next node toward the goal (-1 for the goal).
+    snr : ndarray, shape (M,)
+        Each UAV's :math:`A_m` of the radar (the FIM of eq. (9)).
     """
 
     indptr: np.ndarray
@@ -202,17 +231,21 @@ class SceneArrays(NamedTuple):
     nodes: np.ndarray
     node_dist: np.ndarray
     next_node: np.ndarray
+    snr: np.ndarray
 
 
 class RunInputs(NamedTuple):
-    """The random inputs of one run (drawn by the driver from the run's seed).
+    """The inputs of one run (drawn by the driver from the run's seed; the disturbance and
+    the range noise are drawn inside the kernel, :mod:`crlbswarm.counter_rng`).
 
     Parameters
     ----------
-    noise : ndarray, shape (K, M, 2)
-        Motion disturbance :math:`\\mathbf n_{m,k}`, m.
-    range_noise : ndarray, shape (K+1, M)
-        Standard normal draws of the range noise.
+    start : ndarray, shape (M, 2)
+        Start positions, m.
+    keys : ndarray of int64, shape (4,)
+        The Philox keys of the run's disturbance and range noise,
+        :func:`crlbswarm.counter_rng.stream_key` of (seed, DISTURBANCE) then (seed,
+        RANGE_NOISE).
     target : ndarray, shape (K+1, 2)
         True target position, m.
     target_velocity : ndarray, shape (K+1, 2)
@@ -222,29 +255,33 @@ class RunInputs(NamedTuple):
     delta : ndarray, shape (M, 2)
         Each UAV's slot offset in :math:`F^*` from the formation's centre (the target for
         a regular polygon; ``MissionConstants.centre_x``), after the slot assignment, m.
+    ids : ndarray of int64, shape (M,)
+        Each UAV's index in the swarm (the UAV word of its draws' counters).
     """
 
-    noise: np.ndarray
-    range_noise: np.ndarray
+    start: np.ndarray
+    keys: np.ndarray
     target: np.ndarray
     target_velocity: np.ndarray
     x0: np.ndarray
     delta: np.ndarray
+    ids: np.ndarray
 
 
 class RunOutputs(NamedTuple):
-    """The arrays one run writes (``q[0]`` and ``eta[0]`` hold the start on entry).
+    """The arrays one run writes. K+1 rows: steps 0 .. K; the trajectories keep the rows
+    of :func:`crlbswarm.results.kept_rows`.
 
     Parameters
     ----------
-    q : ndarray, shape (K+1, M, 2)
-        Positions, m.
-    v : ndarray, shape (K+1, M, 2)
-        Consensus velocities, m/s (``v[0]`` zero on entry).
+    q : ndarray, shape (R, M, 2)
+        Positions at the kept steps, m (R = 0 when the trajectories are not kept).
+    v : ndarray, shape (R, M, 2)
+        Consensus velocities at the kept steps, m/s (the leader's is its reference).
     v_ref : ndarray, shape (K+1, 2)
         Leader's reference velocity, m/s.
     eta : ndarray, shape (K+1,)
-        Scaling factor.
+        Scaling factor (``eta[0]`` holds the start on entry).
     clearance : ndarray, shape (K+1,)
         Smallest obstacle clearance, m.
     separation : ndarray, shape (K+1,)
@@ -257,6 +294,10 @@ class RunOutputs(NamedTuple):
         Trace of its position covariance, m^2.
     distance_to_go : ndarray, shape (K+1,)
         Distance from the centroid to the target along the route, m.
+    centroid : ndarray, shape (K+1, 2)
+        Centroid of the UAVs, m.
+    fim : ndarray, shape (K+1, 3)
+        FIM of the target position at the true target, eq. (9): ``J_xx, J_yy, J_xy``.
     """
 
     q: np.ndarray
@@ -269,85 +310,81 @@ class RunOutputs(NamedTuple):
     estimate: np.ndarray
     estimate_variance: np.ndarray
     distance_to_go: np.ndarray
+    centroid: np.ndarray
+    fim: np.ndarray
+
+
+@njit(cache=True, _nrt=False)
+def keep_state(row, q, v, out_q, out_v):
+    """Copy the positions and velocities into row ``row`` of the kept trajectories (none if
+    ``row`` is negative, :func:`keep_row`)."""
+    if row < 0:
+        return
+    for m in range(q.shape[0]):
+        out_q[row, m, 0] = q[m, 0]
+        out_q[row, m, 1] = q[m, 1]
+        out_v[row, m, 0] = v[m, 0]
+        out_v[row, m, 1] = v[m, 1]
+
+
+@njit(cache=True, inline="always")
+def keep_row(k, k_steps, stride):
+    """Row of step ``k`` in the kept trajectories (:func:`crlbswarm.results.kept_rows`), or -1."""
+    if stride <= 0:
+        return -1
+    if k % stride == 0:
+        return k // stride
+    if k == k_steps:
+        return k // stride + 1
+    return -1
 
 
 @njit(cache=True)
-def sense_target(q, s_true, z, x, p_cov, ranges, const, work):
+def sense_target(k, q, s_true, ranges, keys, ids, x, p_cov, const, work):
     """Step 0: the UAVs measure their ranges to the true target (eq. (2), the range model
-    of :func:`crlbswarm.estimation.noisy_range`) and the filter fuses them in place
+    of :func:`crlbswarm.estimation.noisy_range`, its standard normal the first of the pair
+    of counter ``(k, ids[m], RANGE_NOISE, 0)``) and the filter fuses them in place
     (:func:`crlbswarm.tracking.update_into`, scratch ``work``). Returns ``(x, P)``."""
     h2 = const.altitude * const.altitude
     for m in range(q.shape[0]):
         dx = s_true[0] - q[m, 0]
         dy = s_true[1] - q[m, 1]
-        ranges[m] = noisy_range(dx * dx + dy * dy + h2, const.snr_constant, z[m])
+        z, _ = normal_pair(keys[2], keys[3], k, ids[m], RANGE_NOISE, 0)
+        ranges[m] = noisy_range(dx * dx + dy * dy + h2, const.snr_constant, z)
     update_into(x, p_cov, q, ranges, const.altitude, const.snr_constant, FILTER_ITERATIONS, work)
     return x, p_cov
 
 
+@njit(cache=True, _nrt=False)
+def obstacle_pass(q, rep, clear, rects, circles, ctl, lo, hi):
+    """One pass over the obstacles for each UAV ``lo .. hi - 1`` at ``q``: its repulsion of
+    eq. (18) (into ``rep``) and its clearance (into ``clear``); returns the smallest
+    clearance."""
+    smallest = math.inf
+    for m in range(lo, hi):
+        rep[m, 0], rep[m, 1] = repulsion_at(
+            q[m, 0], q[m, 1], rects, circles, ctl.repulsion_gain, ctl.safety_radius,
+            ctl.repulsion_max_step,
+        )  # fmt: skip
+        clear[m] = clearance_at(q[m, 0], q[m, 1], rects, circles)
+        smallest = min(smallest, clear[m])
+    return smallest
+
+
 @njit(cache=True)
-def move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work, safe):
-    """Step 2's motion, for every UAV of every group: the obstacle repulsion (eq. (18)) added
-    to the formation input in ``u`` (eq. (19)), through the safety filter when it is on
-    (across all UAVs), then the motion model of eq. (3) from ``q`` (step k) to ``q_next``.
-    ``safe``: None without the safety filter (its code is then not compiled), else any
-    array. Returns False if a position ran away."""
+def safe_displacement(q, v, u, rep, d_work, rects, circles, const, a_work, b_work):
+    """The safety filter (:func:`crlbswarm.safety.safety_step`, across all UAVs) on the
+    nominal displacements: the formation input ``u`` (eq. (19)) plus the repulsion ``rep``
+    (eq. (18)) plus the consensus velocity times dT; the safe displacements replace ``u``."""
     dt = const.dt
-    noise = inp.noise[k]
     for m in range(q.shape[0]):
-        rx, ry = repulsion_at(
-            q[m, 0], q[m, 1], scene.rects, scene.circles, ctl.repulsion_gain,
-            ctl.safety_radius, ctl.repulsion_max_step,
-        )  # fmt: skip
-        if safe is not None:  # the nominal displacement, filtered below
-            d_work[m, 0] = u[m, 0] + rx + v[m, 0] * dt
-            d_work[m, 1] = u[m, 1] + ry + v[m, 1] * dt
-        else:
-            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rx, v[m, 0], dt, noise[m, 0])
-            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], ry, v[m, 1], dt, noise[m, 1])
-    if safe is not None:
-        safety_step(
-            q, d_work, u, scene.rects, scene.circles, const.min_separation,
-            const.sensing_radius, const.decay, const.pair_margin, const.obstacle_margin,
-            const.vmax_step, a_work, b_work, UNBLOCK_TURN,
-        )  # fmt: skip
-        for m in range(q.shape[0]):  # eq. (3) with the safe displacement (in u) as the input
-            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], 0.0, 0.0, dt, noise[m, 0])
-            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], 0.0, 0.0, dt, noise[m, 1])
-    for m in range(q.shape[0]):
-        if not (abs(q_next[m, 0]) <= DIVERGENCE_LIMIT
-                and abs(q_next[m, 1]) <= DIVERGENCE_LIMIT):  # fmt: skip
-            return False
-    return True
-
-
-@njit(cache=True)
-def control_step(k, q, q_next, v, v_next, vref, eta, u, d_work, cx, cy, sx, sy, node, out, inp,
-                 scene, ctl, rule, const, a_work, b_work, safe, route):  # fmt: skip
-    """Step 2 from ``q`` (step k) to ``q_next``: eqs. (19), (18) and (3) (through the safety
-    filter when it is on, :func:`move_uavs`), the cost (15), the consensus (14) and the next
-    eta (``safe``, ``route``: the feature markers of :func:`run_mission`). Returns False if
-    a position ran away."""
-    delta = inp.delta
-    formation_update(q, delta, eta, ctl.epsilon, scene.indptr, scene.indices, u)
-    if not move_uavs(k, q, q_next, v, u, d_work, inp, scene, ctl, const, a_work, b_work,
-                     safe):  # fmt: skip
-        return False
-    out.cost[k] = control_cost(q, q_next, delta, vref, const.dt, scene.indptr, scene.indices)
-    consensus_update(v, vref, const.leader, scene.indptr, scene.indices, ctl.gamma, v_next)
-    if rule.enabled:  # along the route (the straight line to the target off the planner)
-        if route is not None:
-            goal = route_eta_goal(
-                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.rects,
-                scene.circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
-            )  # fmt: skip
-        else:
-            goal = eta_goal(cx, cy, sx, sy, const.radius, scene.rects, scene.circles,
-                            rule.margin, rule.lookahead, rule.samples, rule.minimum)  # fmt: skip
-        out.eta[k + 1] = eta_rate_limit(eta, goal, rule.rate * const.dt)
-    else:
-        out.eta[k + 1] = 1.0
-    return True
+        d_work[m, 0] = u[m, 0] + rep[m, 0] + v[m, 0] * dt
+        d_work[m, 1] = u[m, 1] + rep[m, 1] + v[m, 1] * dt
+    safety_step(
+        q, d_work, u, rects, circles, const.min_separation, const.sensing_radius, const.decay,
+        const.pair_margin, const.obstacle_margin, const.vmax_step, a_work, b_work,
+        UNBLOCK_TURN,
+    )  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -432,21 +469,250 @@ def passed_nodes(cx, cy, k, nodes, next_node, reach):
     return k
 
 
+@njit(cache=True, _nrt=False)
+def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, part):
+    """Start of a step for the UAVs ``lo .. hi - 1`` (block ``b``): take the state of the
+    step (``shift``: copy it from ``q_next``, ``v_next``), and write the block's sums of
+    the positions and of the FIM terms at the true target (tx, ty) (eq. (9),
+    :func:`crlbswarm.fisher.fim_entries_at`) into ``part[b, 0:5]``."""
+    if shift:
+        for m in range(lo, hi):
+            q[m, 0] = q_next[m, 0]
+            q[m, 1] = q_next[m, 1]
+            v[m, 0] = v_next[m, 0]
+            v[m, 1] = v_next[m, 1]
+    cx = 0.0
+    cy = 0.0
+    for m in range(lo, hi):
+        cx += q[m, 0]
+        cy += q[m, 1]
+    part[b, 0] = cx
+    part[b, 1] = cy
+    part[b, 2], part[b, 3], part[b, 4] = fim_entries_at(q[lo:hi], tx, ty, altitude, snr[lo:hi])
+
+
+@njit(cache=True, _nrt=False)
+def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, indptr, indices, ctl,
+                part):  # fmt: skip
+    """The inputs of the UAVs ``lo .. hi - 1`` (block ``b``): one pass over the obstacles
+    for each (its repulsion of eq. (18) into ``rep``, its clearance into ``clear``, the
+    block's smallest into ``part[b, 5]``) and the formation input of eq. (19) into ``u``."""
+    part[b, 5] = obstacle_pass(q, rep, clear, rects, circles, ctl, lo, hi)
+    formation_rows(q, delta, eta, ctl.epsilon, indptr, indices, u, lo, hi)
+
+
+@njit(cache=True, _nrt=False)
+def motion_block(b, lo, hi, k, q, q_next, v, u, rep, keys, ids, const, filtered, part):
+    """Eq. (3) for the UAVs ``lo .. hi - 1`` (block ``b``) from ``q`` (step k) to
+    ``q_next``, with the disturbance ``sigma`` times the pair of counter ``(k, ids[m],
+    DISTURBANCE, 0)``: the input ``u`` (eq. (19)) plus ``rep`` (eq. (18)) plus the
+    consensus velocity, or, ``filtered``, the safety filter's displacement in ``u`` alone.
+    ``part[b, 6]`` is 1 if a position ran away, else 0."""
+    dt = const.dt
+    sigma = const.sigma
+    bad = 0.0
+    for m in range(lo, hi):
+        n0, n1 = normal_pair(keys[0], keys[1], k, ids[m], DISTURBANCE, 0)
+        if filtered:
+            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], 0.0, 0.0, dt, sigma * n0)
+            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], 0.0, 0.0, dt, sigma * n1)
+        else:
+            q_next[m, 0] = motion_model(q[m, 0], u[m, 0], rep[m, 0], v[m, 0], dt, sigma * n0)
+            q_next[m, 1] = motion_model(q[m, 1], u[m, 1], rep[m, 1], v[m, 1], dt, sigma * n1)
+        if not (abs(q_next[m, 0]) <= DIVERGENCE_LIMIT
+                and abs(q_next[m, 1]) <= DIVERGENCE_LIMIT):  # fmt: skip
+            bad = 1.0
+    part[b, 6] = bad
+
+
+@njit(cache=True, _nrt=False)
+def update_block(b, lo, hi, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl,
+                 dt, part):  # fmt: skip
+    """After the motion, for the UAVs ``lo .. hi - 1`` (block ``b``): their terms of the
+    cost of eq. (15) into ``part[b, 7]`` and the consensus of eq. (14) into ``v_next``."""
+    part[b, 7] = cost_rows(q, q_next, delta, vref, dt, indptr, indices, lo, hi)
+    consensus_rows(v, vref, leader, indptr, indices, ctl.gamma, v_next, lo, hi)
+
+
+@njit(cache=True, parallel=True)
+def _state_blocks(n_uavs, shift, q, q_next, v, v_next, tx, ty, altitude, snr, part):
+    for b in prange(part.shape[0]):
+        lo = b * UAV_BLOCK
+        state_block(b, lo, min(lo + UAV_BLOCK, n_uavs), shift, q, q_next, v, v_next, tx, ty,
+                    altitude, snr, part)  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, rects, circles, indptr, indices, ctl,
+                  part):  # fmt: skip
+    for b in prange(part.shape[0]):
+        lo = b * UAV_BLOCK
+        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, rects,
+                    circles, indptr, indices, ctl, part)  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def _motion_blocks(n_uavs, k, q, q_next, v, u, rep, keys, ids, const, filtered, part):
+    for b in prange(part.shape[0]):
+        lo = b * UAV_BLOCK
+        motion_block(b, lo, min(lo + UAV_BLOCK, n_uavs), k, q, q_next, v, u, rep, keys, ids,
+                     const, filtered, part)  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl, dt,
+                   part):  # fmt: skip
+    for b in prange(part.shape[0]):
+        lo = b * UAV_BLOCK
+        update_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, q_next, v, v_next, delta, vref,
+                     leader, indptr, indices, ctl, dt, part)  # fmt: skip
+
+
+@njit(cache=True, _nrt=False)
+def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles, delta, scene,
+                ctl, rule, const, out, route):  # fmt: skip
+    """Step 1: the leader's reference velocity toward its slot over the goal (sx, sy)
+    (moving at tvx, tvy), into ``vref``, ``out.v_ref[k]`` and the leader's row of ``v``;
+    the distance to go into ``out.distance_to_go[k]``. With the route (``route`` not None)
+    the goal is the point ahead on it (:func:`leader_goal`) and at step 0 the formation
+    takes its goal's scale. Returns ``(eta, node)``."""
+    leader = const.leader
+    if route is not None:
+        gx, gy, fvx, fvy, togo, node = leader_goal(
+            cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
+        )
+        out.distance_to_go[k] = togo
+        if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
+            eta = route_eta_goal(  # rule starts at 1)
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects,
+                circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+            )  # fmt: skip
+            out.eta[0] = eta
+    else:  # straight to the goal (the paper's guidance)
+        gx, gy, fvx, fvy = sx, sy, tvx, tvy
+        out.distance_to_go[k] = math.hypot(cx - sx, cy - sy)
+    vref[0], vref[1] = reference_velocity(
+        q[leader, 0], q[leader, 1], gx + eta * delta[leader, 0], gy + eta * delta[leader, 1],
+        cx, cy, ctl.guidance_gain, ctl.cruise_speed, fvx, fvy, rects, circles,
+        ctl.repulsion_gain, const.steer_radius,
+        steering_footprint(eta, cx, cy, sx, sy, ctl, const.radius), const.dt,
+    )  # fmt: skip
+    out.v_ref[k, 0] = vref[0]
+    out.v_ref[k, 1] = vref[1]
+    v[leader, 0] = vref[0]
+    v[leader, 1] = vref[1]
+    return eta, node
+
+
+@njit(cache=True, _nrt=False)
+def next_eta(cx, cy, sx, sy, eta, node, rects, circles, scene, rule, const, route):
+    """The next step's scaling factor: the eta rule's goal along the route (the straight
+    line to the goal (sx, sy) without the planner), approached at the rule's rate; 1 with
+    the rule off."""
+    if not rule.enabled:
+        return 1.0
+    if route is not None:
+        goal = route_eta_goal(
+            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects, circles,
+            rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+        )  # fmt: skip
+    else:
+        goal = eta_goal(cx, cy, sx, sy, const.radius, rects, circles, rule.margin,
+                        rule.lookahead, rule.samples, rule.minimum)  # fmt: skip
+    return eta_rate_limit(eta, goal, rule.rate * const.dt)
+
+
+@njit(cache=True, inline="always")
+def step_state(k, q, q_next, v, v_next, tx, ty, altitude, snr, part, out_centroid, out_fim, wide):
+    """:func:`state_block` on every block (on all threads with ``wide``), then the blocks'
+    sums in block order: the centroid (written to ``out_centroid[k]`` and returned) and the
+    FIM (``out_fim[k]``)."""
+    m_uavs = q.shape[0]
+    n_blocks = part.shape[0]
+    if wide is not None:
+        _state_blocks(m_uavs, k > 0, q, q_next, v, v_next, tx, ty, altitude, snr, part)
+    else:
+        for b in range(n_blocks):
+            lo = b * UAV_BLOCK
+            state_block(b, lo, min(lo + UAV_BLOCK, m_uavs), k > 0, q, q_next, v, v_next, tx,
+                        ty, altitude, snr, part)  # fmt: skip
+    sums = np.zeros(5)
+    for b in range(n_blocks):
+        for i in range(5):
+            sums[i] += part[b, i]
+    out_fim[k, 0] = sums[2]
+    out_fim[k, 1] = sums[3]
+    out_fim[k, 2] = sums[4]
+    out_centroid[k, 0] = sums[0] / m_uavs
+    out_centroid[k, 1] = sums[1] / m_uavs
+    return out_centroid[k, 0], out_centroid[k, 1]
+
+
+@njit(cache=True, inline="always")
+def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr, indices, ctl,
+                const, filtered, part, out_cost, wide):  # fmt: skip
+    """:func:`motion_block` then :func:`update_block` on every block (on all threads with
+    ``wide``), then the cost of eq. (15) (the blocks' sums in block order) into
+    ``out_cost[k]``. Returns False if a position ran away."""
+    m_uavs = q.shape[0]
+    n_blocks = part.shape[0]
+    dt = const.dt
+    leader = const.leader
+    if wide is not None:
+        _motion_blocks(m_uavs, k, q, q_next, v, u, rep, keys, ids, const, filtered, part)
+        _update_blocks(m_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl,
+                       dt, part)  # fmt: skip
+    else:
+        for b in range(n_blocks):
+            lo = b * UAV_BLOCK
+            motion_block(b, lo, min(lo + UAV_BLOCK, m_uavs), k, q, q_next, v, u, rep, keys, ids,
+                         const, filtered, part)  # fmt: skip
+        for b in range(n_blocks):
+            lo = b * UAV_BLOCK
+            update_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, q_next, v, v_next, delta, vref,
+                         leader, indptr, indices, ctl, dt, part)  # fmt: skip
+    cost = 0.0
+    for b in range(n_blocks):
+        if part[b, 6] != 0.0:
+            return False
+        cost += part[b, 7]
+    out_cost[k] = cost
+    return True
+
+
 @njit(cache=True)
-def run_mission(out, inp, scene, ctl, rule, const, safe, route, track):
-    """One run from ``out.q[0]`` to the end of ``inp.noise``; returns -1, or the step at
-    which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
+def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
+    """One run from ``inp.start`` for ``inp.target.shape[0] - 1`` steps; returns -1, or the
+    step at which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
 
     ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route and the
     filter in the loop on (any array, e.g. ``np.empty(0)``) or off (``None``): Numba drops
     the code of a layer that is off, so a scenario compiles only what it uses (the paper's
-    mission compiles none of the three)."""
-    k_steps = inp.noise.shape[0]
-    m_uavs = out.q.shape[1]
-    leader = const.leader
-    u = np.empty((m_uavs, 2))
-    d_work = np.empty((m_uavs, 2))
-    n_rows = m_uavs - 1 + scene.rects.shape[0] + scene.circles.shape[0]
+    mission compiles none of the three). ``wide`` (an array, or None) runs the per-UAV
+    work of each step on all threads, in blocks of :data:`UAV_BLOCK` UAVs (for one large
+    swarm). The per-UAV work is done block by block either way and the blocks' partial
+    sums are added in block order, so the results do not depend on ``wide`` or the
+    threads, bit for bit.
+
+    The state of the step lives in work arrays of shape (M, 2); the trajectories are
+    copied out at the kept steps only, so the memory does not grow with the mission's
+    length. The arrays are taken out of their tuples once, before the loop, and no view is
+    made in it but one per block: each costs atomic reference counts."""
+    k_steps = inp.target.shape[0] - 1
+    m_uavs = inp.start.shape[0]
+    stride = const.stride
+    rects, circles, indptr, indices = scene.rects, scene.circles, scene.indptr, scene.indices
+    snr = scene.snr
+    keys, ids, delta = inp.keys, inp.ids, inp.delta
+    target, target_velocity = inp.target, inp.target_velocity
+    out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
+    out_centroid, out_clear, out_sep = out.centroid, out.clearance, out.separation
+    q, v = inp.start.copy(), np.zeros((m_uavs, 2))
+    q_next, v_next, u = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty((m_uavs, 2))
+    rep, d_work, clear = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty(m_uavs)
+    n_blocks = (m_uavs + UAV_BLOCK - 1) // UAV_BLOCK
+    part = np.zeros((n_blocks, 8))  # each block's partial sums (state_block, ...)
+    n_rows = m_uavs - 1 + rects.shape[0] + circles.shape[0]
     a_work = np.empty((max(n_rows, 1), 2))  # rows of the safety filter's QP
     b_work = np.empty(max(n_rows, 1))
     vref = np.empty(2)
@@ -456,68 +722,57 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track):
     p_cov = scene.p0.copy()
     f_work = filter_work()
     moving = x.shape[0] == 4
+    h = const.altitude
     for k in range(k_steps + 1):
-        q = out.q[k]
-        eta = out.eta[k]
+        eta = out_eta[k]
+        # The state of step k, the centroid and the FIM at the true target (eq. (9)).
+        tx, ty = target[k, 0], target[k, 1]
+        cx, cy = step_state(k, q, q_next, v, v_next, tx, ty, h, snr, part, out_centroid,
+                            out_fim, wide)  # fmt: skip
         # The formation's goal: the UAVs' own estimate of the target, or the truth.
         if track is not None:
             if k % const.measure_every == 0:
-                x, p_cov = sense_target(q, inp.target[k], inp.range_noise[k], x, p_cov, ranges,
-                                        const, f_work)  # fmt: skip
+                x, p_cov = sense_target(k, q, target[k], ranges, keys, ids, x, p_cov, const,
+                                        f_work)  # fmt: skip
             sx, sy = x[0], x[1]
             tvx, tvy = (x[2], x[3]) if moving else (0.0, 0.0)
             out.estimate[k, 0] = sx
             out.estimate[k, 1] = sy
             out.estimate_variance[k] = p_cov[0, 0] + p_cov[1, 1]
         else:
-            sx, sy = inp.target[k, 0], inp.target[k, 1]
-            tvx, tvy = inp.target_velocity[k, 0], inp.target_velocity[k, 1]
+            sx, sy = tx, ty
+            tvx, tvy = target_velocity[k, 0], target_velocity[k, 1]
         # The formation's centre over the goal (the target itself for a regular polygon).
         sx += const.centre_x
         sy += const.centre_y
-        cx = 0.0
-        cy = 0.0
-        for m in range(m_uavs):
-            cx += q[m, 0]
-            cy += q[m, 1]
-        cx /= m_uavs
-        cy /= m_uavs
         # Step 1: the leader's reference velocity toward its slot over the goal.
-        if route is not None:
-            gx, gy, fvx, fvy, out.distance_to_go[k], node = leader_goal(
-                cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
-            )
-            if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the
-                eta = route_eta_goal(  # paper's rule starts at 1)
-                    cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius,
-                    scene.rects, scene.circles, rule.margin, rule.lookahead, rule.samples,
-                    rule.minimum, True,
-                )  # fmt: skip
-                out.eta[0] = eta
-        else:  # straight to the goal (the paper's guidance)
-            gx, gy, fvx, fvy = sx, sy, tvx, tvy
-            out.distance_to_go[k] = math.hypot(cx - sx, cy - sy)
-        vref[0], vref[1] = reference_velocity(
-            q[leader, 0], q[leader, 1], gx + eta * inp.delta[leader, 0],
-            gy + eta * inp.delta[leader, 1], cx, cy, ctl.guidance_gain, ctl.cruise_speed,
-            fvx, fvy, scene.rects, scene.circles, ctl.repulsion_gain, const.steer_radius,
-            steering_footprint(eta, cx, cy, sx, sy, ctl, const.radius), const.dt,
-        )  # fmt: skip
-        out.v_ref[k, 0] = vref[0]
-        out.v_ref[k, 1] = vref[1]
-        out.v[k, leader, 0] = vref[0]
-        out.v[k, leader, 1] = vref[1]
-        clearance = math.inf
-        for m in range(m_uavs):
-            clearance = min(clearance, clearance_at(q[m, 0], q[m, 1], scene.rects, scene.circles))
-        out.clearance[k] = clearance
-        out.separation[k] = min_separation(q)
+        eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
+                                circles, delta, scene, ctl, rule, const, out, route)  # fmt: skip
+        keep_state(keep_row(k, k_steps, stride), q, v, out_q, out_v)
+        # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
+        # and the formation input of eq. (19).
+        if wide is not None:
+            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, rects, circles, indptr,
+                          indices, ctl, part)  # fmt: skip
+        else:
+            for b in range(n_blocks):
+                lo = b * UAV_BLOCK
+                input_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, delta, eta, u, rep, clear,
+                            rects, circles, indptr, indices, ctl, part)  # fmt: skip
+        out_clear[k] = part[:, 5].min()
+        out_sep[k] = min_separation(q)
         if k == k_steps:
             break
-        if not control_step(k, q, out.q[k + 1], out.v[k], out.v[k + 1], vref, eta, u, d_work,
-                            cx, cy, sx, sy, node, out, inp, scene, ctl, rule, const, a_work,
-                            b_work, safe, route):  # fmt: skip
+        # Step 2: the motion of eq. (3) (through the safety filter when it is on), the cost
+        # of eq. (15), the consensus of eq. (14), the next eta.
+        if safe is not None:
+            safe_displacement(q, v, u, rep, d_work, rects, circles, const, a_work, b_work)
+        filtered = safe is not None
+        if not step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
+                           indices, ctl, const, filtered, part, out_cost, wide):  # fmt: skip
             return k + 1
+        out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, rects, circles, scene, rule,
+                                  const, route)  # fmt: skip
         if track is not None:  # Step 3: prediction with the target's motion model.
             predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
@@ -532,10 +787,11 @@ def run_batch(outs, inps, status, scene, ctl, rule, const, safe, route, track):
     for b in prange(status.shape[0]):
         out = RunOutputs(
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
-            outs[6][b], outs[7][b], outs[8][b], outs[9][b],
+            outs[6][b], outs[7][b], outs[8][b], outs[9][b], outs[10][b], outs[11][b],
         )  # fmt: skip
-        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
-        status[b] = run_mission(out, inp, scene, ctl, rule, const, safe, route, track)
+        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
+                        inps[6][b])  # fmt: skip
+        status[b] = run_mission(out, inp, scene, ctl, rule, const, safe, route, track, None)
 
 
 # ---------------------------------------------------------------------------------------
@@ -610,17 +866,21 @@ class GroupOutputs(NamedTuple):
 
 
 @njit(cache=True)
-def run_groups(out, inp, scene, ctl, rule, const, grp, safe):
+def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step of every group
     """One run of a swarm split into groups, each flying its own formation to its own static
     target with its own leader, as :func:`run_mission` flies one (the same laws, called per
     group on the group's UAVs and graph, without the planner and the filter), while the
-    repulsion, the safety filter and the motion act on all UAVs at once (:func:`move_uavs`),
+    repulsion, the safety filter and the motion act on all UAVs at once (:func:`motion_block`),
     so the safety filter keeps UAVs of different groups apart too. Returns -1, or the step
     at which a position ran away."""
-    k_steps = inp.noise.shape[0]
+    k_steps = out.q.shape[0] - 1
     m_uavs = out.q.shape[1]
     n_groups = grp.leaders.shape[0]
+    rects, circles, keys, ids = scene.rects, scene.circles, inp.keys, inp.ids
     u = np.empty((m_uavs, 2))
+    rep = np.empty((m_uavs, 2))
+    clear = np.empty(m_uavs)
+    part = np.zeros((1, 8))  # (motion_block's flag)
     d_work = np.empty((m_uavs, 2))
     n_rows = m_uavs - 1 + scene.rects.shape[0] + scene.circles.shape[0]
     a_work = np.empty((max(n_rows, 1), 2))
@@ -630,6 +890,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):
     delta = inp.delta
     for k in range(k_steps + 1):
         q = out.q[k]
+        obstacle_pass(q, rep, clear, rects, circles, ctl, 0, m_uavs)  # all UAVs, one pass
         for g in range(n_groups):  # Step 1 per group: the leader's reference velocity.
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
             cx = 0.0
@@ -657,9 +918,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):
             out.v[k, ld, 1] = vref[g, 1]
             clearance = math.inf
             for m in range(lo, hi):
-                clearance = min(
-                    clearance, clearance_at(q[m, 0], q[m, 1], scene.rects, scene.circles)
-                )
+                clearance = min(clearance, clear[m])
             out.clearance[k, g] = clearance
         out.separation[k] = min_separation(q)
         if k == k_steps:
@@ -671,8 +930,12 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):
             formation_update(q[lo:hi], delta[lo:hi], out.eta[k, g], ctl.epsilon, ip, ix,
                              u[lo:hi])  # fmt: skip
         q_next = out.q[k + 1]
-        if not move_uavs(k, q, q_next, out.v[k], u, d_work, inp, scene, ctl, const, a_work,
-                         b_work, safe):  # fmt: skip
+        if safe is not None:
+            safe_displacement(q, out.v[k], u, rep, d_work, rects, circles, const, a_work,
+                              b_work)  # fmt: skip
+        motion_block(0, 0, m_uavs, k, q, q_next, out.v[k], u, rep, keys, ids, const,
+                     safe is not None, part)  # fmt: skip
+        if part[0, 6] != 0.0:
             return k + 1
         for g in range(n_groups):  # eqs. (15) and (14) and the next eta, per group
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
@@ -705,5 +968,6 @@ def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp, safe):
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
             outs[6][b], outs[7][b],
         )  # fmt: skip
-        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b])
+        inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
+                        inps[6][b])  # fmt: skip
         status[b] = run_groups(out, inp, scene, ctl, rule, const, grp, safe)

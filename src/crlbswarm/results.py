@@ -34,6 +34,7 @@ __all__ = [
     "STEADY_STATE_S",
     "GroupMissionResult",
     "MissionResult",
+    "kept_rows",
     "load_results",
     "outcome_report",
     "result_nbytes",
@@ -69,11 +70,12 @@ class MissionResult:
         Seed of each run.
     time : ndarray, shape (K+1,)
         Time of each sample, s.
-    positions : ndarray, shape (B, K+1, M, 2), or None
-        UAV positions, m (``None`` if ``keep_trajectories=False``).
-    velocities : ndarray, shape (B, K+1, M, 2), or None
+    positions : ndarray, shape (B, R, M, 2), or None
+        UAV positions, m, at the R steps :attr:`trajectory_steps` (every step by default;
+        ``None`` if ``keep_trajectories=False``).
+    velocities : ndarray, shape (B, R, M, 2), or None
         Consensus velocities :math:`\\mathbf v_{m,k}` (the leader's is :math:`\\mathbf v^*_k`),
-        m/s (``None`` if ``keep_trajectories=False``).
+        m/s, at the steps :attr:`trajectory_steps` (``None`` if ``keep_trajectories=False``).
     centroid : ndarray, shape (B, K+1, 2)
         Formation centroid, m.
     target : ndarray, shape (B, K+1, 2)
@@ -106,6 +108,9 @@ class MissionResult:
         (:func:`crlbswarm.crlb_bound`; :math:`4/\\sum_m w_m^*` of eq. (11) for equal UAVs),
         or, when :math:`F^*` is blocked, the CRLB of the constrained design
         (:attr:`crlbswarm.Scenario.formation_design`).
+    trajectory_stride : int, default 1
+        ``positions`` and ``velocities`` hold every this many steps, and the last
+        (:attr:`trajectory_steps`; ``simulate(..., trajectory_stride=...)``).
     """
 
     scenario: Scenario
@@ -126,10 +131,17 @@ class MissionResult:
     separation: np.ndarray
     distance_to_go: np.ndarray
     bound: float
+    trajectory_stride: int = 1
     metrics: dict[str, np.ndarray] = field(init=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "metrics", self._metrics())
+
+    @property
+    def trajectory_steps(self) -> np.ndarray:
+        """The steps at which ``positions`` and ``velocities`` are kept: every
+        ``trajectory_stride``-th step from 0, and the last step."""
+        return kept_rows(int(self.time.shape[0]) - 1, self.trajectory_stride)
 
     @property
     def n_runs(self) -> int:
@@ -284,9 +296,12 @@ class MissionResult:
         if self.estimate is not None:
             cols["estimate_x"] = self.estimate[b, :, 0]
             cols["estimate_y"] = self.estimate[b, :, 1]
+        kept = self.trajectory_steps  # (NaN at the steps not kept)
         for m in range(self.positions.shape[2]):
-            cols[f"x_uav{m + 1}"] = self.positions[b, :, m, 0]
-            cols[f"y_uav{m + 1}"] = self.positions[b, :, m, 1]
+            for axis, name in ((0, "x"), (1, "y")):
+                col = np.full(self.time.shape, np.nan)
+                col[kept] = self.positions[b, :, m, axis]
+                cols[f"{name}_uav{m + 1}"] = col
         return cols
 
     def timeseries_columns(self, run: int = 0) -> dict[str, np.ndarray]:
@@ -421,7 +436,31 @@ class MissionResult:
         return out
 
 
-def result_nbytes(n_runs: int, k_steps: int, m_uavs: int, keep_trajectories: bool) -> int:
+def kept_rows(k_steps: int, stride: int) -> np.ndarray:
+    """The steps whose positions and velocities are kept: every ``stride``-th step from 0,
+    and the last step K (0 steps when ``stride`` is 0).
+
+    Parameters
+    ----------
+    k_steps : int
+        Steps K of the run.
+    stride : int
+        Keep every this many steps; 0 keeps none.
+
+    Returns
+    -------
+    ndarray of int64
+        The kept steps, increasing.
+    """
+    if stride <= 0:
+        return np.empty(0, dtype=np.int64)
+    steps = np.arange(0, k_steps + 1, stride, dtype=np.int64)
+    return steps if steps[-1] == k_steps else np.append(steps, k_steps)
+
+
+def result_nbytes(
+    n_runs: int, k_steps: int, m_uavs: int, keep_trajectories: bool, stride: int = 1
+) -> int:
     """Bytes of the arrays of a result: its time series (about 14 values per run and step:
     eta, CRLB, cost, centroid, target, estimate, ...) and, if kept, the positions and
     velocities of every UAV (the memory :func:`crlbswarm.simulate` needs, and about the
@@ -437,6 +476,8 @@ def result_nbytes(n_runs: int, k_steps: int, m_uavs: int, keep_trajectories: boo
         UAVs.
     keep_trajectories : bool
         Whether positions and velocities are kept.
+    stride : int, default 1
+        They are kept every this many steps (and at the last).
 
     Returns
     -------
@@ -444,7 +485,8 @@ def result_nbytes(n_runs: int, k_steps: int, m_uavs: int, keep_trajectories: boo
         Bytes.
     """
     series = n_runs * (k_steps + 1) * 14 * 8
-    trajectories = 2 * n_runs * (k_steps + 1) * m_uavs * 2 * 8 if keep_trajectories else 0
+    rows = kept_rows(k_steps, stride).size if keep_trajectories else 0
+    trajectories = 2 * n_runs * rows * m_uavs * 2 * 8
     return series + trajectories
 
 
@@ -657,6 +699,8 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
             arrays = {name: data.get(name) for name in _ARRAY_FIELDS}
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise FieldError("folder", f"cannot read {str(npz)!r}: {exc}") from None
+    stride = arrays["trajectory_stride"]
+    arrays["trajectory_stride"] = 1 if stride is None else int(stride)
     _check_arrays(arrays, scenario, npz)
     arrays["bound"] = float(arrays["bound"])
     return MissionResult(scenario=scenario, **arrays)
@@ -673,7 +717,8 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
         "clearance": (b, k1), "separation": (b, k1), "distance_to_go": (b, k1), "bound": (),
     }  # fmt: skip
     if arrays["positions"] is not None or arrays["velocities"] is not None:
-        shapes.update(positions=(b, k1, m, 2), velocities=(b, k1, m, 2))
+        rows = kept_rows(k1 - 1, arrays["trajectory_stride"]).size
+        shapes.update(positions=(b, rows, m, 2), velocities=(b, rows, m, 2))
     if scenario.estimation.enabled:
         shapes.update(estimate=(b, k1, 2), estimate_variance=(b, k1), pcrb=(k1,))
     for name, shape in shapes.items():

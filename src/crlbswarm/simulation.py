@@ -6,11 +6,13 @@ mission (:mod:`crlbswarm.mission_kernel`, the controller of Sec. IV equation by 
 it then computes the CRLB along the trajectories and, with sensing in the loop, the
 posterior CRLB, and returns a :class:`~crlbswarm.results.MissionResult`.
 
-Random numbers: for seed :math:`s`, ``SeedSequence(s).spawn(4)`` gives the streams of the
-start positions, the motion disturbance, the range noise and the target's acceleration
-noise, in that order (spawning more children leaves the first ones unchanged, so the
-streams of a scenario without estimation are the same as before estimation existed). Run
-:math:`b` of a batch is therefore bit-identical to the single run with the same seed.
+Random numbers: for seed :math:`s`, ``SeedSequence(s).spawn(4)`` gives the NumPy streams of
+the start positions (child 0) and the target's acceleration noise (child 3); the motion
+disturbance and the range noise are drawn inside the kernel, each number from the
+counter-based generator of :mod:`crlbswarm.counter_rng` keyed by (seed, stream) and
+counted by (step, UAV), so no array of them is ever held and the memory of a run does not
+grow with its length. Run :math:`b` of a batch is therefore bit-identical to the single
+run with the same seed, whatever the batch, the chunk or the thread.
 """
 
 from __future__ import annotations
@@ -19,11 +21,13 @@ import itertools
 from collections.abc import Callable, Iterable
 from typing import Any
 
+import numba
 import numpy as np
 
 from . import _validation as _v
+from .counter_rng import DISTURBANCE, RANGE_NOISE, stream_key
 from .errors import FieldError, SimulationDivergedError
-from .fisher import crlb
+from .fisher import crlb, crlb_from_entries
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
     REPLAN_PERIOD,
@@ -38,20 +42,17 @@ from .mission_kernel import (
     run_mission,
 )
 from .planning import assign_slots
-from .results import GroupMissionResult, MissionResult, result_nbytes
+from .results import GroupMissionResult, MissionResult, kept_rows, result_nbytes
 from .scenario import Scenario
-from .tracking import (
-    motion_matrices,
-    posterior_crlb,
-    summed_range_information,
-    target_trajectories,
-)
+from .tracking import motion_matrices, posterior_crlb, target_trajectories
 
 __all__ = [
     "MAX_ITERATED_SEEDS",
     "MAX_SEED",
+    "WIDE_UAVS",
     "check_memory",
     "layer_markers",
+    "run_keys",
     "simulate",
     "simulate_groups",
     "start_positions",
@@ -69,6 +70,14 @@ MAX_ITERATED_SEEDS = 1_000_000
 
 #: Largest seed (seeds are stored as int64).
 MAX_SEED = _v.MAX_SEED
+
+#: A single run of at least this many UAVs does the per-UAV work of each step on all of
+#: Numba's threads (:func:`crlbswarm.mission_kernel.run_mission`, ``wide``); a batch runs
+#: its runs in parallel instead. The results are the same bits either way.
+WIDE_UAVS = 2048
+
+#: The marker of a kernel layer that is on (:func:`layer_markers`).
+_ON = np.empty(0)
 
 
 def _streams(seed: int, count: int) -> list[np.random.Generator]:
@@ -124,7 +133,7 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
 
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_steps: int,
-               keep: bool) -> np.ndarray:  # fmt: skip
+               keep: bool, stride: int = 1) -> np.ndarray:  # fmt: skip
     """The seeds as an int64 array, checked; a ``range`` is checked (values and the memory
     of its runs) before it is materialised."""
     if seed is not None and seeds is not None:
@@ -135,7 +144,7 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
             raise FieldError("seeds", "need at least one seed")
         _v.seed(seeds[0], name)
         _v.seed(seeds[-1], name)  # a range's values lie between its ends
-        check_memory(len(seeds), k_steps, m_uavs, keep)
+        check_memory(len(seeds), k_steps, m_uavs, keep, stride)
         return np.arange(seeds.start, seeds.stop, seeds.step, dtype=np.int64)
     if seeds is None:
         values = [0 if seed is None else seed]
@@ -153,24 +162,24 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
         raise FieldError("seeds", "need at least one seed")
     for s in values:
         _v.seed(s, name)
-    check_memory(len(values), k_steps, m_uavs, keep)
+    check_memory(len(values), k_steps, m_uavs, keep, stride)
     return np.array(values, dtype=np.int64)
 
 
-#: Work arrays per run of a chunk, in float64 values per UAV and step: the pre-drawn
-#: disturbance (2) and range noise (1), the chunk's positions and velocities when the batch
-#: does not keep them (4), the temporaries of the CRLB along the trajectories (about 6).
-CHUNK_VALUES_PER_UAV_STEP = 13
+#: Work values per run of a chunk: the FIM along the run (3 per step) and the run's own
+#: inputs and state (start, slots, the kernel's work arrays: about 20 per UAV).
+CHUNK_VALUES_PER_STEP = 3
+CHUNK_VALUES_PER_UAV = 20
 
 
 def _chunk_runs(n_runs: int, k_steps: int, m_uavs: int) -> int:
-    """Runs per chunk: at most CHUNK_RUNS runs or CHUNK_BYTES of disturbance, and at least
+    """Runs per chunk: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays, and at least
     ~20 chunks for long batches so that progress is reported often."""
-    per_run = k_steps * m_uavs * 2 * 8
+    per_run = 8 * (k_steps * CHUNK_VALUES_PER_STEP + m_uavs * CHUNK_VALUES_PER_UAV)
     return max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
 
 
-def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
+def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool, stride: int = 1) -> None:
     """Refuse, before allocating, a batch whose arrays could not fit in memory.
 
     Parameters
@@ -183,6 +192,8 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
         UAVs.
     keep : bool
         Whether the trajectories are kept.
+    stride : int, default 1
+        They are kept every this many steps (:func:`crlbswarm.results.kept_rows`).
 
     Raises
     ------
@@ -192,11 +203,12 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool) -> None:
     """
     fixes = ["fewer runs per call"] if n_runs > 1 else []
     if keep:
-        fixes.append("keep_trajectories=False (--no-trajectories)")
+        fixes.append("keep_trajectories=False (--no-trajectories) or a trajectory stride")
     fixes.append("fewer UAVs or steps (uavs.count, time.duration)")
-    work = _chunk_runs(n_runs, k_steps, m_uavs) * (k_steps + 1) * m_uavs * 8
+    chunk = _chunk_runs(n_runs, k_steps, m_uavs)
+    work = chunk * 8 * ((k_steps + 1) * CHUNK_VALUES_PER_STEP + m_uavs * CHUNK_VALUES_PER_UAV)
     _v.check_memory(
-        result_nbytes(n_runs, k_steps, m_uavs, keep) + CHUNK_VALUES_PER_UAV_STEP * work,
+        result_nbytes(n_runs, k_steps, m_uavs, keep, stride) + work,
         "seeds" if n_runs > 1 else "scenario",
         f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
         "use " + ", or ".join(fixes),
@@ -219,16 +231,17 @@ def layer_markers(sc: Scenario) -> tuple[np.ndarray | None, np.ndarray | None, n
     tuple
         ``(safe, route, track)``.
     """
-    on = np.empty(0)
     return (
-        on if sc.safety.enabled else None,
-        on if sc.planner_on else None,
-        on if sc.estimation.enabled else None,
+        _ON if sc.safety.enabled else None,
+        _ON if sc.planner_on else None,
+        _ON if sc.estimation.enabled else None,
     )
 
 
-def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConstants]:
-    """The compiled mission's shared arrays, gains, eta rule and constants for ``sc``."""
+def _kernel_arguments(sc: Scenario, stride: int = 1
+                      ) -> tuple[SceneArrays, Any, Any, MissionConstants]:  # fmt: skip
+    """The compiled mission's shared arrays, gains, eta rule and constants for ``sc``, with
+    the trajectories kept every ``stride`` steps (0: not kept)."""
     motion, est, safety = sc.target_motion, sc.estimation, sc.safety
     f_mat, q_mat, n = motion_matrices(
         motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
@@ -250,6 +263,9 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         nodes=nodes,
         node_dist=node_dist,
         next_node=next_node,
+        snr=np.ascontiguousarray(
+            np.broadcast_to(np.asarray(sc.radar_model.snr_constant, dtype=float), (sc.uavs.count,))
+        ),
     )
     pair_margin, obstacle_margin = sc.safety_margins
     const = MissionConstants(
@@ -274,6 +290,8 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
         steer_radius=sc.steering_radius,
         centre_x=float(sc.formation_design.centre_offset[0]),
         centre_y=float(sc.formation_design.centre_offset[1]),
+        sigma=float(sc.disturbance.sigma),
+        stride=stride,
     )
     return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
@@ -281,11 +299,11 @@ def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConst
 class _Batch:
     """The arrays of a whole batch (B runs), filled chunk by chunk."""
 
-    def __init__(self, sc: Scenario, n_runs: int, keep: bool) -> None:
+    def __init__(self, sc: Scenario, n_runs: int, rows: int) -> None:
         k1, m = sc.time.steps + 1, sc.uavs.count
-        traj = (n_runs, k1, m, 2)
-        self.positions = np.empty(traj) if keep else None
-        self.velocities = np.empty(traj) if keep else None
+        traj = (n_runs, rows, m, 2)
+        self.positions = np.empty(traj)
+        self.velocities = np.empty(traj)
         self.vref, self.centroid, self.target = (np.empty((n_runs, k1, 2)) for _ in range(3))
         self.eta, self.crlb, self.clearance, self.separation, self.distance_to_go = (
             np.empty((n_runs, k1)) for _ in range(5)
@@ -301,32 +319,42 @@ class _ChunkBuffers:
     """Work arrays of one chunk of runs, reused across chunks (page faults of fresh arrays
     cost as much as the work)."""
 
-    def __init__(self, sc: Scenario, chunk_runs: int, keep: bool, n_state: int) -> None:
+    def __init__(self, sc: Scenario, chunk_runs: int, n_state: int) -> None:
         k, m = sc.time.steps, sc.uavs.count
-        self.noise = np.empty((chunk_runs, k, m, 2))
-        self.range_noise = np.zeros((chunk_runs, k + 1, m))  # stays zero without estimation
+        self.start = np.empty((chunk_runs, m, 2))
+        self.keys = np.empty((chunk_runs, 4), dtype=np.int64)
+        self.ids = np.broadcast_to(np.arange(m, dtype=np.int64), (chunk_runs, m)).copy()
         self.estimate = np.zeros((chunk_runs, k + 1, 2))
         self.estimate_variance = np.zeros((chunk_runs, k + 1))
+        self.fim = np.empty((chunk_runs, k + 1, 3))
         self.x0 = np.zeros((chunk_runs, n_state))
         self.delta = np.empty((chunk_runs, m, 2))
         self.status = np.empty(chunk_runs, dtype=np.int64)
-        # Trajectories of the chunk when the batch does not keep them (else unused, empty).
-        rows = 0 if keep else chunk_runs
-        self.positions = np.empty((rows, k + 1, m, 2))
-        self.velocities = np.empty((rows, k + 1, m, 2))
 
 
-def _draw_run(sc: Scenario, seed: int, noise: np.ndarray, range_noise: np.ndarray
-              ) -> tuple[np.ndarray, np.random.Generator]:  # fmt: skip
-    """One run's random inputs from its own streams: the start (returned), the standard
-    normal disturbance (into ``noise``), the range noise with sensing in the loop (into
-    ``range_noise``), and the stream of the target's motion (returned)."""
-    start_rng, noise_rng, range_rng, motion_rng = _streams(seed, 4)
-    start = _start(sc, start_rng)
-    noise_rng.standard_normal(out=noise)
-    if sc.estimation.enabled:
-        range_rng.standard_normal(out=range_noise)
-    return start, motion_rng
+def run_keys(seed: int) -> np.ndarray:
+    """The Philox keys of a run's disturbance and range noise (``RunInputs.keys``).
+
+    Parameters
+    ----------
+    seed : int
+        The run's seed.
+
+    Returns
+    -------
+    ndarray of int64, shape (4,)
+        :func:`crlbswarm.counter_rng.stream_key` of (seed, DISTURBANCE), then of (seed,
+        RANGE_NOISE).
+    """
+    return np.array(stream_key(seed, DISTURBANCE) + stream_key(seed, RANGE_NOISE), np.int64)
+
+
+def _draw_run(sc: Scenario, seed: int, keys: np.ndarray) -> tuple[np.ndarray, np.random.Generator]:
+    """One run's random inputs: the start (returned), the keys of the kernel's draws (into
+    ``keys``), and the stream of the target's motion (returned)."""
+    start_rng, _, _, motion_rng = _streams(seed, 4)
+    keys[:] = run_keys(seed)
+    return _start(sc, start_rng), motion_rng
 
 
 def _slot_offsets(sc: Scenario, start: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -349,17 +377,16 @@ def _diverged(sc: Scenario, run: int, seed: int, step: int) -> SimulationDiverge
     )
 
 
-def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers, pos: np.ndarray) -> Any:
-    """Draw each run's start (into ``pos[:, 0]``), disturbance and range noise from its own
-    streams, assign the slots of F* (into ``buf.delta``), and the true target trajectories;
-    returns the target states (B, K+1, 4)."""
+def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers) -> Any:
+    """Each run's start (into ``buf.start``) and keys from its own seed, the slots of F*
+    (into ``buf.delta``), and the true target trajectories; returns the target states
+    (B, K+1, 4)."""
     motion_rngs = []
     centre = np.asarray(sc.target) + sc.formation_design.centre_offset
     for i, s in enumerate(seeds):
-        pos[i, 0], motion_rng = _draw_run(sc, int(s), buf.noise[i], buf.range_noise[i])
-        buf.delta[i] = _slot_offsets(sc, pos[i, 0], centre)
+        buf.start[i], motion_rng = _draw_run(sc, int(s), buf.keys[i])
+        buf.delta[i] = _slot_offsets(sc, buf.start[i], centre)
         motion_rngs.append(motion_rng)
-    buf.noise[: len(seeds)] *= sc.disturbance.sigma
     motion = sc.target_motion
     return target_trajectories(
         np.asarray(sc.target, dtype=float), np.asarray(motion.velocity, dtype=float),
@@ -373,42 +400,42 @@ def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _Ch
     """Simulate the runs ``lo .. lo + len(seeds) - 1`` of the batch."""
     n = len(seeds)
     hi = lo + n
-    if batch.positions is not None and batch.velocities is not None:
-        pos, vel = batch.positions[lo:hi], batch.velocities[lo:hi]
-    else:
-        pos, vel = buf.positions[:n], buf.velocities[:n]
-    truth = _draw_inputs(sc, seeds, buf, pos)
+    truth = _draw_inputs(sc, seeds, buf)
     x0 = buf.x0[:n]
     x0[:, :2] = truth[:, 0, :2] + np.asarray(sc.estimation.prior_offset)
-    vel[:, 0] = 0.0
     batch.eta[lo:hi, 0] = 1.0
+    batch.target[lo:hi] = truth[..., :2]
+    fim = buf.fim[:n]
     outs = RunOutputs(
-        pos, vel, batch.vref[lo:hi], batch.eta[lo:hi], batch.clearance[lo:hi],
-        batch.separation[lo:hi], batch.cost[lo:hi], buf.estimate[:n],
-        buf.estimate_variance[:n], batch.distance_to_go[lo:hi],
+        batch.positions[lo:hi], batch.velocities[lo:hi], batch.vref[lo:hi], batch.eta[lo:hi],
+        batch.clearance[lo:hi], batch.separation[lo:hi], batch.cost[lo:hi], buf.estimate[:n],
+        buf.estimate_variance[:n], batch.distance_to_go[lo:hi], batch.centroid[lo:hi], fim,
     )  # fmt: skip
     inps = RunInputs(
-        buf.noise[:n], buf.range_noise[:n], np.ascontiguousarray(truth[..., :2]),
-        np.ascontiguousarray(truth[..., 2:]), x0, buf.delta[:n],
+        buf.start[:n], buf.keys[:n], batch.target[lo:hi], np.ascontiguousarray(truth[..., 2:]),
+        x0, buf.delta[:n], buf.ids[:n],
     )  # fmt: skip
     status = buf.status[:n]
-    if n == 1:  # one run: the serial kernel (no parallel driver to compile for it)
+    if n == 1:  # one run: the serial kernel (no parallel driver to compile for it), its
+        # per-UAV work on all threads for a large swarm
+        wide = _ON if sc.uavs.count >= WIDE_UAVS and numba.get_num_threads() > 1 else None
         status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
                                 RunInputs(*(a[0] for a in inps)), *kernel_args,
-                                *layer_markers(sc))  # fmt: skip
+                                *layer_markers(sc), wide)  # fmt: skip
     else:
         run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc))
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
-    radar = sc.radar_model
-    batch.target[lo:hi] = truth[..., :2]
-    batch.crlb[lo:hi] = crlb(pos, batch.target[lo:hi], sc.altitude, radar)
-    batch.centroid[lo:hi] = pos.mean(axis=-2)
+    batch.crlb[lo:hi] = crlb_from_entries(fim[..., 0], fim[..., 1], fim[..., 2])
     if batch.estimate is not None and batch.estimate_variance is not None:  # estimation on
         batch.estimate[lo:hi] = buf.estimate[:n]
         batch.estimate_variance[lo:hi] = buf.estimate_variance[:n]
-        batch.fim_sum += summed_range_information(pos, batch.target[lo:hi], sc.altitude, radar)
+        summed = fim.sum(axis=0)
+        batch.fim_sum[:, 0, 0] += summed[:, 0]
+        batch.fim_sum[:, 1, 1] += summed[:, 1]
+        batch.fim_sum[:, 0, 1] += summed[:, 2]
+        batch.fim_sum[:, 1, 0] += summed[:, 2]
 
 
 def simulate(
@@ -417,6 +444,7 @@ def simulate(
     *,
     seeds: Iterable[int] | None = None,
     keep_trajectories: bool = True,
+    trajectory_stride: int = 1,
     progress: Callable[[int], None] | None = None,
 ) -> MissionResult:
     """Run the mission of ``scenario`` for one seed or a batch of seeds.
@@ -434,8 +462,13 @@ def simulate(
         give at most :data:`MAX_ITERATED_SEEDS` seeds.
     keep_trajectories : bool, default True
         Keep positions and velocities of every step. With ``False`` they are dropped after
-        each chunk of runs (``positions`` and ``velocities`` of the result are ``None``) and
-        memory stays at a few arrays of shape (B, K+1): use it for large campaigns.
+        each step (``positions`` and ``velocities`` of the result are ``None``) and memory
+        stays at a few arrays of shape (B, K+1) and the kernel's work arrays of shape
+        (M, 2): use it for large campaigns and large swarms.
+    trajectory_stride : int, default 1
+        Keep the positions and velocities every this many steps (and at the last step):
+        ``result.trajectory_steps`` lists the kept steps. The time series (CRLB, eta, ...)
+        keep every step.
     progress : callable, optional
         Called with the number of runs finished after each chunk of runs (for progress bars).
 
@@ -463,15 +496,17 @@ def simulate(
     if sc.extra_targets:
         raise FieldError("scenario", "has extra_targets (several targets): use simulate_groups")
     k_steps, m_uavs = sc.time.steps, sc.uavs.count
-    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories)
+    stride = _v.count(trajectory_stride, "trajectory_stride", 1, max(k_steps, 1))
+    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories, stride)
     n_runs = seed_arr.shape[0]
-    kernel_args = _kernel_arguments(sc)
+    kept = kept_rows(k_steps, stride if keep_trajectories else 0)
+    kernel_args = _kernel_arguments(sc, stride if keep_trajectories else 0)
     scene = kernel_args[0]
-    batch = _Batch(sc, n_runs, keep_trajectories)
-    # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of disturbance, and at least ~20 chunks
+    batch = _Batch(sc, n_runs, kept.size)
+    # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays, and at least ~20 chunks
     # for long batches so that progress is reported often.
     chunk_runs = _chunk_runs(n_runs, k_steps, m_uavs)
-    buf = _ChunkBuffers(sc, chunk_runs, keep_trajectories, scene.p0.shape[0])
+    buf = _ChunkBuffers(sc, chunk_runs, scene.p0.shape[0])
     for lo in range(0, n_runs, chunk_runs):
         _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args)
         if progress is not None:
@@ -487,8 +522,8 @@ def simulate(
         scenario=sc,
         seeds=seed_arr,
         time=np.arange(k_steps + 1) * sc.time.step,
-        positions=batch.positions,
-        velocities=batch.velocities,
+        positions=batch.positions if keep_trajectories else None,
+        velocities=batch.velocities if keep_trajectories else None,
         reference_velocity=batch.vref,
         centroid=batch.centroid,
         target=batch.target,
@@ -502,6 +537,7 @@ def simulate(
         separation=batch.separation,
         distance_to_go=batch.distance_to_go,
         bound=sc.formation_design.bound,
+        trajectory_stride=stride,
     )
 
 
@@ -593,11 +629,11 @@ def simulate_groups(
     k_steps, m_uavs = sc.time.steps, sc.uavs.count
     seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories)
     n_runs, n_groups = seed_arr.shape[0], len(plan.members)
-    # The whole batch at once: positions, velocities and disturbance of every UAV and step,
-    # the groups' copies when the trajectories are kept, and the CRLB's temporaries (~6).
+    # The whole batch at once: positions and velocities of every UAV and step, the groups'
+    # copies when the trajectories are kept, and the CRLB's temporaries (~6).
     per_value = 8.0 * n_runs * (k_steps + 1) * m_uavs * 2
     _v.check_memory(
-        per_value * (3 + (2 if keep_trajectories else 0) + 3), "seeds" if n_runs > 1 else
+        per_value * (2 + (2 if keep_trajectories else 0) + 3), "seeds" if n_runs > 1 else
         "scenario", f"{n_runs} runs of {k_steps} steps with {m_uavs} UAVs (several targets)",
         "use fewer runs per call, or fewer UAVs or steps",
     )  # fmt: skip
@@ -606,24 +642,22 @@ def simulate_groups(
     k1 = k_steps + 1
     q = np.empty((n_runs, k1, m_uavs, 2))
     v = np.zeros((n_runs, k1, m_uavs, 2))
-    noise = np.empty((n_runs, k_steps, m_uavs, 2))
+    keys = np.empty((n_runs, 4), dtype=np.int64)
     delta = np.empty((n_runs, m_uavs, 2))
     for i, s in enumerate(seed_arr):
-        start, _ = _draw_run(sc, int(s), noise[i], np.empty(m_uavs))  # (no range noise)
-        noise[i] = noise[i][:, order]
+        start, _ = _draw_run(sc, int(s), keys[i])
         q[i, 0] = start[order]
         for g, gsc in enumerate(plan.scenarios):
             lo, hi = groups.bounds[g], groups.bounds[g + 1]
             delta[i, lo:hi] = _slot_offsets(gsc, q[i, 0, lo:hi], groups.goals[g])
-    noise *= sc.disturbance.sigma
     outs = GroupOutputs(
         q, v, np.empty((n_runs, k1, n_groups, 2)), np.ones((n_runs, k1, n_groups)),
         np.empty((n_runs, k1, n_groups)), np.empty((n_runs, k1)),
         np.empty((n_runs, k_steps, n_groups)), np.empty((n_runs, k1, n_groups)),
     )  # fmt: skip
-    unused = np.zeros((n_runs, k1, 2))
-    inps = RunInputs(noise, np.zeros((n_runs, k1, m_uavs)), unused, unused,
-                     np.zeros((n_runs, 2)), delta)  # fmt: skip
+    unused = np.zeros((n_runs, k1, 2))  # (the targets are in ``groups``)
+    ids = np.broadcast_to(order.astype(np.int64), (n_runs, m_uavs)).copy()  # draws by swarm UAV
+    inps = RunInputs(q[:, 0], keys, unused, unused, np.zeros((n_runs, 2)), delta, ids)
     status = np.empty(n_runs, dtype=np.int64)
     run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups,
                     layer_markers(plan.scenarios[0])[0])  # fmt: skip
