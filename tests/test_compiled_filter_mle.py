@@ -267,7 +267,7 @@ def _plain_cases():
 
 @pytest.mark.parametrize("case", list(_plain_cases()))
 def test_estimate_target_plain_path_equals_the_general_path(case, monkeypatch):
-    """The plain path (no Python checks, two compiled calls) gives the general path's
+    """The plain path (no Python checks, one compiled call) gives the general path's
     results bit for bit: the general path gets the same numbers as lists."""
     args = _plain_cases()[case]
     general = {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in args.items()}
@@ -278,6 +278,37 @@ def test_estimate_target_plain_path_equals_the_general_path(case, monkeypatch):
         assert a.shape == b.shape
         assert a.dtype == b.dtype
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("max_iter", [1, 100])
+@pytest.mark.parametrize("plain", [True, False])
+def test_estimate_target_is_its_two_stages_with_the_documented_weights(plain, max_iter):
+    """Both paths of ``estimate_target`` are, bit for bit, the closed-form start, stage 1
+    with the weights A / ((p p)(p p)), p = max(|range|, H), and stage 2, each run by
+    ``damped_newton`` (the same compiled trial loop); some ranges below the altitude or
+    negative take the floor. (Stopped after 1 iteration, the estimates carry the last bits
+    of the weights: those of NumPy's power would not pass.)"""
+    forms, ranges, radar = _trials(30, seed=5)  # (a low SNR)
+    ranges = ranges.copy()
+    ranges[0, :2] = (5.0, -3.0)
+    ranges[17, 4] = -21.0
+    n, h = len(ranges), 20.0
+    args = (forms, ranges) if plain else (forms.tolist(), ranges.tolist())
+    est = cs.estimate_target(*args, h, radar, max_iter=max_iter)
+    a = np.broadcast_to(radar.snr_constant, ranges.shape)
+    p = np.maximum(np.abs(ranges), h)
+    w = a / ((p * p) * (p * p))
+    h2 = np.full((n, 1), h * h)
+    q = np.ascontiguousarray(forms)
+    s = estimation.linearised_estimate(forms, ranges, h)
+    s, _, _, it1, _ = estimation.damped_newton(False, s, q, ranges, h2, a, w, max_iter, 1e-6)
+    s, nll, converged, it2, minimum = estimation.damped_newton(
+        True, s, q, ranges, h2, a, w, max_iter, 1e-10
+    )
+    np.testing.assert_array_equal(est.position, s)
+    np.testing.assert_array_equal(est.nll, nll)
+    np.testing.assert_array_equal(est.converged, converged & minimum)
+    np.testing.assert_array_equal(est.iterations, it1 + it2)
 
 
 @pytest.mark.parametrize(

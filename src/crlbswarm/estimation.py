@@ -459,14 +459,14 @@ def _newton_batch(exact, s, q, d_hat, h2, a, w, n_iter, tolerance, cost_out, con
 
 
 @njit(cache=True, error_model="numpy")
-def _mle_batch(q, d_hat, h, a, p4, s, start, n_iter, tolerance, nll_out, conv_out, it_out):
+def _mle_batch(q, d_hat, h, a, s, start, n_iter, tolerance, nll_out, conv_out, it_out):
     r"""Both stages of :func:`estimate_target` for every trial, one after the other: the
     closed-form start (unless ``start`` is False: ``s`` holds the starts), stage 1
-    (weighted least squares with the frozen weights :math:`A_m/p_m`, ``p4`` holding
-    :math:`p_m = \max(|\hat d_m|, H)^4`; loose tolerance), stage 2 (the exact likelihood).
-    ``q``, the altitudes ``h`` and ``a`` have one row per trial or a single row. Results
-    into ``s`` (in place) and the ``*_out`` arrays; returns whether every position and
-    likelihood is finite."""
+    (weighted least squares with the frozen weights of :func:`_stage1_weights`; loose
+    tolerance), stage 2 (the exact likelihood). ``q``, the altitudes ``h`` and ``a`` have one
+    row per trial or a single row. Results into ``s`` (in place) and the ``*_out`` arrays;
+    returns whether every position and likelihood is finite. Both paths of
+    :func:`estimate_target` run this function, so they give the same bits."""
     m_uavs = d_hat.shape[1]
     scratch = np.zeros((20 + (m_uavs + 2) // 3, 3))  # one allocation (small batches feel each)
     work, lin, w = scratch[:15], scratch[15:20], scratch[20:].reshape(-1)[:m_uavs]
@@ -475,16 +475,14 @@ def _mle_batch(q, d_hat, h, a, p4, s, start, n_iter, tolerance, nll_out, conv_ou
     for i in range(s.shape[0]):
         qi = q[i if q.shape[0] > 1 else 0]
         hi = h[i if h.shape[0] > 1 else 0]
-        hi = hi * hi
         ai = a[i if a.shape[0] > 1 else 0]
         di, si = d_hat[i], s[i]
-        for m in range(m_uavs):
-            w[m] = ai[m] / p4[i, m]
+        h2 = _stage1_weights(di, hi, ai, w)
         if start:
-            _linearised_trial(qi, di, hi, si, lin)
-        _, _, it1, _ = _newton_trial(False, si, qi, di, hi, ai, w, n_iter, loose, work)
+            _linearised_trial(qi, di, h2, si, lin)
+        _, _, it1, _ = _newton_trial(False, si, qi, di, h2, ai, w, n_iter, loose, work)
         nll, converged, it2, minimum = _newton_trial(
-            True, si, qi, di, hi, ai, w, n_iter, tolerance, work
+            True, si, qi, di, h2, ai, w, n_iter, tolerance, work
         )
         nll_out[i] = nll
         # A zero gradient at a maximum or a saddle (for example by symmetry) is not the MLE.
@@ -492,6 +490,23 @@ def _mle_batch(q, d_hat, h, a, p4, s, start, n_iter, tolerance, nll_out, conv_ou
         it_out[i] = it1 + it2
         finite = finite and math.isfinite(nll) and math.isfinite(si[0]) and math.isfinite(si[1])
     return finite
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _stage1_weights(d_hat, h, a, w):
+    r"""The frozen weights of stage 1 of one trial into ``w``: :math:`w_m = A_m/p_m^4` with
+    :math:`p_m = \max(|\hat d_m|, H)` (a range measured near zero, at an absurd SNR, gets a
+    finite weight), the fourth power computed as ``(p * p) * (p * p)``; returns
+    :math:`H^2`. (Until the weights were computed here, NumPy's power gave :math:`p^4`: its
+    vectorised pow, whose last bits these products do not always reproduce, so estimates
+    may differ from those of earlier versions in the last bits.)"""
+    h2 = h * h
+    floor = math.sqrt(h2)
+    for m in range(d_hat.shape[0]):
+        p = max(abs(d_hat[m]), floor)
+        p2 = p * p
+        w[m] = a[m] / (p2 * p2)
+    return h2
 
 
 @njit(cache=True, error_model="numpy")
@@ -675,7 +690,11 @@ def estimate_target(
        :math:`A_m/\hat d_m^4` (Gauss-Newton curvature), from ``init``. Its cost grows with
        distance, so it cannot slide into the spurious far-away basin of the exact
        likelihood (far from the UAVs the modelled variance :math:`d^4/A` is so large that it
-       "explains" any range);
+       "explains" any range). The weights are computed in the compiled loop as
+       :math:`A_m/((p_m p_m)(p_m p_m))` with :math:`p_m = \max(|\hat d_m|, H)`, the range
+       floored at the altitude (earlier builds took :math:`p_m^4` from NumPy's power,
+       whose last bits often differ, so a few trials' estimates differ from theirs in the
+       last bits);
     2. the exact likelihood (module docstring) with its exact Hessian, from stage 1. Its
        result is the MLE; ``nll`` and ``converged`` refer to this stage.
 
@@ -742,17 +761,11 @@ def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
     nll = np.empty(batch)
     converged = np.empty(batch, dtype=np.bool_)
     iterations = np.empty(batch, dtype=np.int64)
-    d_b = _batch_array(d_hat, batch, (m_uavs,))
-    h_b = _batch_array(h, batch)
-    a_b = _batch_array(a, batch, (m_uavs,))
-    # The frozen weights of stage 1 are A_m / p4 (NumPy's power: its vectorised pow, which
-    # the compiled code does not reproduce bit for bit); a range measured near zero (absurd
-    # SNR) gets a finite weight.
-    with np.errstate(over="ignore"):
-        p4 = np.maximum(np.abs(d_b), np.sqrt(h_b * h_b)[:, None]) ** 4
-    finite = _mle_batch(_batch_array(q, batch, (m_uavs, 2)), d_b, h_b, a_b, p4,
-                        s.reshape(-1, 2), s0 is None, n_iter, tolerance, nll.reshape(-1),
-                        converged.reshape(-1), iterations.reshape(-1))  # fmt: skip
+    finite = _mle_batch(_batch_array(q, batch, (m_uavs, 2)),
+                        _batch_array(d_hat, batch, (m_uavs,)), _batch_array(h, batch),
+                        _batch_array(a, batch, (m_uavs,)), s.reshape(-1, 2), s0 is None,
+                        n_iter, tolerance, nll.reshape(-1), converged.reshape(-1),
+                        iterations.reshape(-1))  # fmt: skip
     if not finite:
         raise FieldError("measured_ranges", _OVERFLOW)
     return TargetEstimate(position=s, converged=converged, iterations=iterations, nll=nll)
@@ -761,7 +774,6 @@ def _estimate(q, d_hat, h, a, s0, n_iter, tolerance) -> TargetEstimate:
 _F8 = np.dtype(np.float64)
 _BOOL = np.dtype(np.bool_)
 _I8 = np.dtype(np.int64)
-_FOUR = np.array(4.0)  # (the exponent as an array: the ufunc skips a conversion)
 _DEFAULT_A = _DEFAULT_RADAR.snr_constant
 #: :math:`A` of the default radar, one (1, M) array per number of UAVs M.
 _DEFAULT_ROWS: dict[int, np.ndarray] = {}
@@ -769,7 +781,9 @@ _DEFAULT_ROWS: dict[int, np.ndarray] = {}
 _ALTITUDES: dict[float, np.ndarray] = {}
 _NO_INIT = np.empty((0, 2))
 
-#: The ranges :func:`_mle_inputs` checks: coordinates, measured ranges, altitudes.
+#: The ranges :func:`_mle_plain` checks: coordinates, measured ranges, altitudes. (An
+#: argument, not globals frozen into the compiled code, whose cache would not see a change
+#: of :mod:`crlbswarm._validation`.)
 _LIMITS = np.array([_v.MAX_COORDINATE, _v.MAX_MEASURED_RANGE, _v.MIN_ALTITUDE, _v.MAX_ALTITUDE])
 
 #: Largest number of ranges :func:`_estimate_plain` takes: above, the general path checks
@@ -778,10 +792,9 @@ _PLAIN_RANGES = _v.SMALL_REQUEST // 64
 
 
 def _plain(x: np.ndarray) -> np.ndarray:
-    """``x`` if C-contiguous and writable (the one array type of the compiled loops), else
-    a copy that is."""
-    flags = x.flags
-    return x if flags.c_contiguous and flags.writeable else x.copy()
+    """``x`` if C-contiguous, aligned and writable (the one array type of the compiled
+    loops), else a copy that is."""
+    return x if x.flags.carray else x.copy()
 
 
 def _estimate_plain(q, d, altitude, radar, init, max_iter, tol) -> TargetEstimate | None:
@@ -791,11 +804,12 @@ def _estimate_plain(q, d, altitude, radar, init, max_iter, tol) -> TargetEstimat
     shape (M, 2) or that of the ranges plus 2 (a formation broadcast over the trials, stride
     0, is read once); a float altitude or one per trial; a :class:`Radar`; ``init`` None or a
     float64 array of shape (2,) or (n, 2); an int ``max_iter`` and a float ``tol`` in range.
-    The values are then checked by the compiled :func:`_mle_inputs`, and both stages run by
-    :func:`_mle_batch`. Anything else, or any value or result those refuse, returns None:
-    the general path of :func:`estimate_target` then computes (the same, bit for bit: the
-    same compiled loops) or raises its error. This path exists for small batches, whose
-    time was the general path's checks (about 40 µs per call, docs/performance.md).
+    One compiled call, :func:`_mle_plain`, then checks the values and runs both stages
+    (:func:`_mle_batch`, the general path's). Anything else, or any value or result it
+    refuses, returns None: the general path of :func:`estimate_target` then computes (the
+    same, bit for bit: the same compiled loops) or raises its error. This path exists for
+    small batches, whose time was the general path's checks (about 40 µs per call,
+    docs/performance.md).
     """
     if (type(d) is not np.ndarray or type(q) is not np.ndarray or d.dtype is not _F8
             or q.dtype is not _F8 or type(max_iter) is not int
@@ -828,21 +842,15 @@ def _estimate_plain(q, d, altitude, radar, init, max_iter, tol) -> TargetEstimat
     s_init = _NO_INIT if init is None else _plain_init(init, shape[:-1])
     if a is None or h is None or s_init is None:
         return None
-    flags = q.flags
-    if not (flags.c_contiguous and flags.writeable):
+    if not q.flags.carray:  # (C-contiguous, aligned and writable)
         q = q.copy()
-    flags = d.flags
-    if not (flags.c_contiguous and flags.writeable):
+    if not d.flags.carray:
         d = d.copy()
     s = np.empty((n, 2))
-    p4 = np.empty((n, m_uavs))
-    if not _mle_inputs(q, d, h, s_init, s, p4, _LIMITS):
-        return None
-    np.power(p4, _FOUR, p4)  # NumPy's power, as the general path
     nll = np.empty(n)
     converged = np.empty(n, _BOOL)
     iterations = np.empty(n, _I8)
-    if not _mle_batch(q, d, h, a, p4, s, init is None, max_iter, tol, nll, converged,
+    if not _mle_plain(q, d, h, a, s_init, s, _LIMITS, max_iter, tol, nll, converged,
                       iterations):  # fmt: skip
         return None
     if len(shape) == 1:  # one trial: the shapes of the general path, (2,) and ()
@@ -901,14 +909,14 @@ def _plain_init(init: object, batch: tuple[int, ...]) -> np.ndarray | None:
 
 
 @njit(cache=True, error_model="numpy")
-def _mle_inputs(q, d_hat, h, init, s, p4, limits):
-    r"""The value checks of :func:`estimate_target` (its general path's, in one pass): UAVs
-    and ``init`` within +-``limits[0]`` m, ranges within +-``limits[1]`` m, altitudes ``h``
-    in [``limits[2]``, ``limits[3]``] m, all finite. If they hold, writes ``s``, the starts
-    (``init``; untouched if it has no rows), and ``p4``, the base :math:`\max(|\hat d_m|,
-    H)` of the weights of stage 1 (NumPy raises it to the fourth power afterwards), and
-    returns True; otherwise returns False, having written nothing. ``q``, ``h`` and
-    ``init`` have one row per trial or a single row."""
+def _mle_plain(q, d_hat, h, a, init, s, limits, n_iter, tolerance, nll_out, conv_out, it_out):
+    r"""The plain path of :func:`estimate_target` in one compiled call: the value checks of
+    its general path (in one pass: UAVs and ``init`` within +-``limits[0]`` m, ranges within
+    +-``limits[1]`` m, altitudes ``h`` in [``limits[2]``, ``limits[3]``] m, all finite), then
+    the starts ``init`` copied into ``s`` (none if it has no rows: the closed-form starts)
+    and both stages by :func:`_mle_batch`, the general path's. ``q``, ``h``, ``a`` and
+    ``init`` have one row per trial or a single row. Returns False if a check fails (having
+    computed nothing) or a result is not finite, else True."""
     coordinate, measured = limits[0], limits[1]
     for i in range(q.shape[0]):
         for m in range(q.shape[1]):
@@ -924,13 +932,10 @@ def _mle_inputs(q, d_hat, h, init, s, p4, limits):
         for m in range(d_hat.shape[1]):
             if not abs(d_hat[i, m]) <= measured:
                 return False
-    for i in range(s.shape[0]):
-        if init.shape[0]:
+    start = init.shape[0] == 0
+    if not start:
+        for i in range(s.shape[0]):
             row = init[i if init.shape[0] > 1 else 0]
             s[i, 0] = row[0]
             s[i, 1] = row[1]
-        hi = h[i if h.shape[0] > 1 else 0]
-        floor = math.sqrt(hi * hi)
-        for m in range(d_hat.shape[1]):
-            p4[i, m] = max(abs(d_hat[i, m]), floor)
-    return True
+    return _mle_batch(q, d_hat, h, a, s, start, n_iter, tolerance, nll_out, conv_out, it_out)
