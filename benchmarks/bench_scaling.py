@@ -49,6 +49,29 @@ def swarm_scenario(n: int, steps: int) -> cs.Scenario:
     )
 
 
+def obstacle_field_scenario(n: int, n_obstacles: int, steps: int, seed: int = 0) -> cs.Scenario:
+    """The swarm of :func:`swarm_scenario` flying through a field of ``n_obstacles`` discs
+    (radius 2 m) spread uniformly over a square of side 4 r* around the target, none
+    within 12 m of the start region or of F*'s ring of slots: the obstacles near a UAV are
+    a few whatever their number."""
+    base = swarm_scenario(n, steps)
+    radius = 2.0 * n / (2.0 * math.pi)
+    side = 2.0 * math.sqrt(n)
+    rng = np.random.default_rng(seed)
+    half = 2.0 * radius
+    centres = []
+    while len(centres) < n_obstacles:
+        x, y = rng.uniform(-half, half, 2)
+        if abs(math.hypot(x, y) - radius) < 12.0:
+            continue  # off the ring of slots
+        if abs(x) < side / 2 + 12.0 and abs(y) < side / 2 + 12.0:
+            continue  # off the start region
+        centres.append((float(x), float(y)))
+    data = base.model_dump()
+    data["obstacles"] = [{"type": "circle", "center": list(c), "radius": 2.0} for c in centres]
+    return cs.Scenario.from_dict(data)
+
+
 def plain_loop_step(q, v, delta, nbrs, leader, v_ref, eps, gamma, dt, circles, l_safe, e_r, cap):
     """One step of the control laws, one UAV at a time, in plain Python (for comparison)."""
     n = len(q)

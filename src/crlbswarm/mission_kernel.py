@@ -55,10 +55,10 @@ from .control import (
 from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
 from .fisher import fim_entries_at
-from .obstacles import clearance_at, repulsion_at
+from .obstacles import ObstacleGrid, obstacle_field
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
-from .spatial import min_separation
+from .spatial import min_separation, min_separation_parallel
 from .tracking import filter_work, predict_into, update_into
 
 __all__ = [
@@ -219,6 +219,10 @@ class SceneArrays(NamedTuple):
         The next node toward the goal (-1 for the goal).
     snr : ndarray, shape (M,)
         Each UAV's :math:`A_m` of the radar (the FIM of eq. (9)).
+    grid : ObstacleGrid
+        The obstacles' index (:func:`crlbswarm.obstacles.obstacle_grid`, reach
+        ``control.safety_radius``): the obstacle work of a UAV or of a sample of the eta
+        rule depends on the obstacles near it, not on their number.
     """
 
     indptr: np.ndarray
@@ -232,6 +236,7 @@ class SceneArrays(NamedTuple):
     node_dist: np.ndarray
     next_node: np.ndarray
     snr: np.ndarray
+    grid: ObstacleGrid
 
 
 class RunInputs(NamedTuple):
@@ -356,17 +361,16 @@ def sense_target(k, q, s_true, ranges, keys, ids, x, p_cov, const, work):
 
 
 @njit(cache=True, _nrt=False)
-def obstacle_pass(q, rep, clear, rects, circles, ctl, lo, hi):
-    """One pass over the obstacles for each UAV ``lo .. hi - 1`` at ``q``: its repulsion of
-    eq. (18) (into ``rep``) and its clearance (into ``clear``); returns the smallest
-    clearance."""
+def obstacle_pass(q, rep, clear, grid, ctl, lo, hi):
+    """One pass over the obstacles near each UAV ``lo .. hi - 1`` at ``q``
+    (:func:`crlbswarm.obstacles.obstacle_field` on the grid): its repulsion of eq. (18)
+    (into ``rep``) and its clearance (into ``clear``); returns the smallest clearance."""
     smallest = math.inf
     for m in range(lo, hi):
-        rep[m, 0], rep[m, 1] = repulsion_at(
-            q[m, 0], q[m, 1], rects, circles, ctl.repulsion_gain, ctl.safety_radius,
+        clear[m], rep[m, 0], rep[m, 1] = obstacle_field(
+            q[m, 0], q[m, 1], grid, ctl.repulsion_gain, ctl.safety_radius,
             ctl.repulsion_max_step,
         )  # fmt: skip
-        clear[m] = clearance_at(q[m, 0], q[m, 1], rects, circles)
         smallest = min(smallest, clear[m])
     return smallest
 
@@ -492,12 +496,12 @@ def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, p
 
 
 @njit(cache=True, _nrt=False)
-def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, indptr, indices, ctl,
+def input_block(b, lo, hi, q, delta, eta, u, rep, clear, grid, indptr, indices, ctl,
                 part):  # fmt: skip
     """The inputs of the UAVs ``lo .. hi - 1`` (block ``b``): one pass over the obstacles
     for each (its repulsion of eq. (18) into ``rep``, its clearance into ``clear``, the
     block's smallest into ``part[b, 5]``) and the formation input of eq. (19) into ``u``."""
-    part[b, 5] = obstacle_pass(q, rep, clear, rects, circles, ctl, lo, hi)
+    part[b, 5] = obstacle_pass(q, rep, clear, grid, ctl, lo, hi)
     formation_rows(q, delta, eta, ctl.epsilon, indptr, indices, u, lo, hi)
 
 
@@ -543,12 +547,12 @@ def _state_blocks(n_uavs, shift, q, q_next, v, v_next, tx, ty, altitude, snr, pa
 
 
 @njit(cache=True, parallel=True)
-def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, rects, circles, indptr, indices, ctl,
+def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, grid, indptr, indices, ctl,
                   part):  # fmt: skip
     for b in prange(part.shape[0]):
         lo = b * UAV_BLOCK
-        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, rects,
-                    circles, indptr, indices, ctl, part)  # fmt: skip
+        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, grid,
+                    indptr, indices, ctl, part)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)
@@ -584,8 +588,8 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
         out.distance_to_go[k] = togo
         if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
             eta = route_eta_goal(  # rule starts at 1)
-                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects,
-                circles, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.grid,
+                rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
             )  # fmt: skip
             out.eta[0] = eta
     else:  # straight to the goal (the paper's guidance)
@@ -605,7 +609,7 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
 
 
 @njit(cache=True, _nrt=False)
-def next_eta(cx, cy, sx, sy, eta, node, rects, circles, scene, rule, const, route):
+def next_eta(cx, cy, sx, sy, eta, node, grid, scene, rule, const, route):
     """The next step's scaling factor: the eta rule's goal along the route (the straight
     line to the goal (sx, sy) without the planner), approached at the rule's rate; 1 with
     the rule off."""
@@ -613,12 +617,12 @@ def next_eta(cx, cy, sx, sy, eta, node, rects, circles, scene, rule, const, rout
         return 1.0
     if route is not None:
         goal = route_eta_goal(
-            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects, circles,
-            rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
+            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, grid, rule.margin,
+            rule.lookahead, rule.samples, rule.minimum, True,
         )  # fmt: skip
     else:
-        goal = eta_goal(cx, cy, sx, sy, const.radius, rects, circles, rule.margin,
-                        rule.lookahead, rule.samples, rule.minimum)  # fmt: skip
+        goal = eta_goal(cx, cy, sx, sy, const.radius, grid, rule.margin, rule.lookahead,
+                        rule.samples, rule.minimum)  # fmt: skip
     return eta_rate_limit(eta, goal, rule.rate * const.dt)
 
 
@@ -702,7 +706,7 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
     m_uavs = inp.start.shape[0]
     stride = const.stride
     rects, circles, indptr, indices = scene.rects, scene.circles, scene.indptr, scene.indices
-    snr = scene.snr
+    snr, grid = scene.snr, scene.grid
     keys, ids, delta = inp.keys, inp.ids, inp.delta
     target, target_velocity = inp.target, inp.target_velocity
     out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
@@ -752,15 +756,18 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
         # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
         # and the formation input of eq. (19).
         if wide is not None:
-            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, rects, circles, indptr,
+            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, grid, indptr,
                           indices, ctl, part)  # fmt: skip
         else:
             for b in range(n_blocks):
                 lo = b * UAV_BLOCK
                 input_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, delta, eta, u, rep, clear,
-                            rects, circles, indptr, indices, ctl, part)  # fmt: skip
+                            grid, indptr, indices, ctl, part)  # fmt: skip
         out_clear[k] = part[:, 5].min()
-        out_sep[k] = min_separation(q)
+        if wide is not None:
+            out_sep[k] = min_separation_parallel(q)
+        else:
+            out_sep[k] = min_separation(q)
         if k == k_steps:
             break
         # Step 2: the motion of eq. (3) (through the safety filter when it is on), the cost
@@ -771,8 +778,7 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
         if not step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
                            indices, ctl, const, filtered, part, out_cost, wide):  # fmt: skip
             return k + 1
-        out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, rects, circles, scene, rule,
-                                  const, route)  # fmt: skip
+        out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, grid, scene, rule, const, route)
         if track is not None:  # Step 3: prediction with the target's motion model.
             predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
@@ -890,7 +896,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step 
     delta = inp.delta
     for k in range(k_steps + 1):
         q = out.q[k]
-        obstacle_pass(q, rep, clear, rects, circles, ctl, 0, m_uavs)  # all UAVs, one pass
+        obstacle_pass(q, rep, clear, scene.grid, ctl, 0, m_uavs)  # all UAVs, one pass
         for g in range(n_groups):  # Step 1 per group: the leader's reference velocity.
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
             cx = 0.0
@@ -949,8 +955,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step 
             if rule.enabled:
                 goal = eta_goal(
                     centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], grp.radius[g],
-                    scene.rects, scene.circles, rule.margin, rule.lookahead, rule.samples,
-                    rule.minimum,
+                    scene.grid, rule.margin, rule.lookahead, rule.samples, rule.minimum,
                 )  # fmt: skip
                 out.eta[k + 1, g] = eta_rate_limit(eta, goal, rule.rate * const.dt)
             else:

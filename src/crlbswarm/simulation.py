@@ -41,6 +41,7 @@ from .mission_kernel import (
     run_group_batch,
     run_mission,
 )
+from .obstacles import obstacle_grid
 from .planning import assign_slots
 from .results import GroupMissionResult, MissionResult, kept_rows, result_nbytes
 from .scenario import Scenario
@@ -263,6 +264,9 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         nodes=nodes,
         node_dist=node_dist,
         next_node=next_node,
+        grid=obstacle_grid(
+            sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
+        ),
         snr=np.ascontiguousarray(
             np.broadcast_to(np.asarray(sc.radar_model.snr_constant, dtype=float), (sc.uavs.count,))
         ),

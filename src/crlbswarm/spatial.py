@@ -12,12 +12,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
 
-__all__ = ["SEPARATION_BRUTE_FORCE_MAX", "min_separation", "smallest_separation"]
+__all__ = [
+    "SEPARATION_BLOCK",
+    "SEPARATION_BRUTE_FORCE_MAX",
+    "min_separation",
+    "min_separation_parallel",
+    "smallest_separation",
+]
 
 
 #: Up to this many UAVs the smallest separation is found by checking every pair.
@@ -29,6 +35,18 @@ def min_separation(q):
     """Smallest distance between two of the points ``q`` (M, 2): all pairs for small swarms,
     a uniform grid (cell list, O(M) for a spread-out swarm) for large ones; exact in both
     cases (+inf for fewer than two points). Compiled kernel, no checks."""
+    return _min_separation(q, None)
+
+
+@njit(cache=True)
+def min_separation_parallel(q):
+    """:func:`min_separation` with the cell list's search on all threads (for one large
+    swarm; the same value: a minimum is exact in any order). Compiled kernel, no checks."""
+    return _min_separation(q, np.empty(0))
+
+
+@njit(cache=True)
+def _min_separation(q, wide):
     n = q.shape[0]
     if n < 2:
         return math.inf
@@ -64,25 +82,50 @@ def min_separation(q):
         for m in range(n):
             order[fill[key[m]]] = m
             fill[key[m]] += 1
-        best = cell * cell
-        found = False
-        for m in range(n):
-            cx, cy = key[m] // ny, key[m] % ny
-            for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
-                for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
-                    k = ax * ny + ay
-                    for j in range(start[k], start[k + 1]):
-                        p = order[j]
-                        if p > m:
-                            dx = q[m, 0] - q[p, 0]
-                            dy = q[m, 1] - q[p, 1]
-                            d2 = dx * dx + dy * dy
-                            if d2 < best:
-                                best = d2
-                                found = True
-        if found:
+        n_blocks = (n + SEPARATION_BLOCK - 1) // SEPARATION_BLOCK
+        block_best = np.empty(n_blocks)
+        if wide is not None:
+            _search_blocks(q, key, start, order, ny, nx, cell * cell, block_best)
+        else:
+            for b in range(n_blocks):
+                block_best[b] = _search(q, key, start, order, ny, nx, cell * cell,
+                                        b * SEPARATION_BLOCK,
+                                        min(n, (b + 1) * SEPARATION_BLOCK))  # fmt: skip
+        best = block_best.min()
+        if best < cell * cell:
             return math.sqrt(best)
         cell *= 2.0
+
+
+#: UAVs per block of the cell list's search (:func:`min_separation_parallel`).
+SEPARATION_BLOCK = 1024
+
+
+@njit(cache=True, _nrt=False)
+def _search(q, key, start, order, ny, nx, limit, lo, hi):
+    """Smallest squared distance below ``limit`` from a UAV ``lo .. hi - 1`` to a UAV of
+    higher index in its own or a neighbouring cell (``limit`` if none)."""
+    best = limit
+    for m in range(lo, hi):
+        cx, cy = key[m] // ny, key[m] % ny
+        for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                k = ax * ny + ay
+                for j in range(start[k], start[k + 1]):
+                    p = order[j]
+                    if p > m:
+                        dx = q[m, 0] - q[p, 0]
+                        dy = q[m, 1] - q[p, 1]
+                        best = min(best, dx * dx + dy * dy)
+    return best
+
+
+@njit(cache=True, parallel=True)
+def _search_blocks(q, key, start, order, ny, nx, limit, block_best):
+    n = q.shape[0]
+    for b in prange(block_best.shape[0]):
+        block_best[b] = _search(q, key, start, order, ny, nx, limit, b * SEPARATION_BLOCK,
+                                min(n, (b + 1) * SEPARATION_BLOCK))  # fmt: skip
 
 
 @njit(cache=True)
