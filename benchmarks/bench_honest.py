@@ -16,7 +16,11 @@ mean anything, as the absolute times follow the machine's load):
 3. the machine floor (``machine_floor.py``): measured SIMD flop rate and memory
    bandwidth, the work of one UAV-step counted from the laws, and crlbswarm's time per
    UAV-step over that floor, for the paper mission and for the large-swarm step of
-   ``bench_scaling.py``.
+   ``bench_scaling.py``;
+4. one large mission on all threads against one thread (blocks of UAVs), 1000 UAVs among
+   1000 obstacles against 10 (the obstacle grid), and the peak memory of one 10^5-UAV
+   mission without trajectories for 150 and 1500 steps (``bench_memory.py``, each in a
+   fresh process; ``--memory-uavs 0`` skips it).
 
 No assertion on time anywhere: a failed agreement check is reported, not raised.
 """
@@ -32,11 +36,12 @@ import time
 import numba
 import numpy as np
 
+import bench_memory
 import crlbswarm as cs
 import honest_baselines as hb
 import machine_floor as mf
 import peers
-from bench_scaling import swarm_scenario
+from bench_scaling import obstacle_field_scenario, swarm_scenario
 from timing import best_of
 
 try:
@@ -106,9 +111,14 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--swarm", type=int, default=10_000, help="UAVs of the large swarm")
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke test)")
+    parser.add_argument(
+        "--memory-uavs", type=int, default=100_000,
+        help="UAVs of the peak-memory missions (150 and 1500 steps; 0: skip)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.quick:
         args.batch, args.plain_runs, args.repeat, args.swarm = 50, 2, 1, 1000
+        args.memory_uavs = 0
     rows: list[tuple[str, str, str, str]] = []
     notes: list[str] = []
 
@@ -284,7 +294,13 @@ def main() -> None:
     swarm_steps = 10 if args.quick else 50
     big = swarm_scenario(args.swarm, swarm_steps)
     cs.simulate(big, seed=0, keep_trajectories=False)
-    t_big = best_of(lambda: cs.simulate(big, seed=1, keep_trajectories=False), 2)
+    numba.set_num_threads(1)
+    try:  # (one thread: the serial kernel, against the one-thread floor)
+        cs.simulate(big, seed=0, keep_trajectories=False)
+        t_big = best_of(lambda: cs.simulate(big, seed=1, keep_trajectories=False), 2)
+    finally:
+        numba.set_num_threads(threads)
+    t_big_all = best_of(lambda: cs.simulate(big, seed=1, keep_trajectories=False), 2)
     per_big = t_big / (swarm_steps * args.swarm)
     big_mi = hb.Mission.from_scenario(big)
     eta_count = hb._Counter()
@@ -313,6 +329,47 @@ def main() -> None:
             f"{per_big / floor_big:.0f}x",
         )
     )
+
+    rows.append(
+        (
+            f"one {args.swarm}-UAV mission ({swarm_steps} steps): {threads} threads vs 1 "
+            "(blocks of UAVs on all threads)",
+            f"{t_big_all:.3f} s",
+            f"{t_big:.3f} s",
+            f"{t_big / t_big_all:.2f}x",
+        )
+    )
+
+    # -- 4. obstacles: 10 against 1000 at M = 1000 ------------------------------------------
+    field_steps = 10 if args.quick else 50
+    per_step = {}
+    for n_obs in (10, 1000):
+        field = obstacle_field_scenario(1000, n_obs, field_steps)
+        cs.simulate(field, seed=0, keep_trajectories=False)
+        t_field = best_of(lambda f=field: cs.simulate(f, seed=1, keep_trajectories=False),
+                          args.repeat)  # fmt: skip
+        per_step[n_obs] = t_field / field_steps
+    rows.append(
+        (
+            "1000 UAVs among 1000 obstacles vs among 10: time per step (obstacle grid)",
+            f"{per_step[1000] * 1e3:.2f} ms",
+            f"{per_step[10] * 1e3:.2f} ms",
+            f"{per_step[1000] / per_step[10]:.2f}x as long",
+        )
+    )
+
+    # -- 5. memory of one large mission without trajectories --------------------------------
+    if args.memory_uavs:
+        mem = {n_steps: bench_memory.measure(args.memory_uavs, n_steps) for n_steps in (150, 1500)}
+        for n_steps, m in mem.items():
+            notes.append(
+                f"peak memory, one {args.memory_uavs}-UAV mission of {n_steps} steps without "
+                f"trajectories: {m['peak_kib'] / 1024:.0f} MiB (process; "
+                f"{(m['peak_kib'] - m['before_kib']) / 1024:.0f} MiB after import and "
+                f"scenario), {m['seconds']:.1f} s"
+            )
+        ratio = mem[1500]["peak_kib"] / mem[150]["peak_kib"]
+        notes.append(f"peak memory, 1500 steps / 150 steps: {ratio:.3f}")
 
     # -- report --------------------------------------------------------------------------
     print(

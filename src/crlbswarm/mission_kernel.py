@@ -55,7 +55,7 @@ from .control import (
 from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
 from .fisher import fim_entries_at
-from .obstacles import ObstacleGrid, obstacle_field
+from .obstacles import obstacle_field
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
 from .spatial import min_separation, min_separation_parallel
@@ -219,10 +219,6 @@ class SceneArrays(NamedTuple):
         The next node toward the goal (-1 for the goal).
     snr : ndarray, shape (M,)
         Each UAV's :math:`A_m` of the radar (the FIM of eq. (9)).
-    grid : ObstacleGrid
-        The obstacles' index (:func:`crlbswarm.obstacles.obstacle_grid`, reach
-        ``control.safety_radius``): the obstacle work of a UAV or of a sample of the eta
-        rule depends on the obstacles near it, not on their number.
     """
 
     indptr: np.ndarray
@@ -236,7 +232,6 @@ class SceneArrays(NamedTuple):
     node_dist: np.ndarray
     next_node: np.ndarray
     snr: np.ndarray
-    grid: ObstacleGrid
 
 
 class RunInputs(NamedTuple):
@@ -574,7 +569,7 @@ def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, in
 
 @njit(cache=True, _nrt=False)
 def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles, delta, scene,
-                ctl, rule, const, out, route):  # fmt: skip
+                grid, ctl, rule, const, out, route):  # fmt: skip
     """Step 1: the leader's reference velocity toward its slot over the goal (sx, sy)
     (moving at tvx, tvy), into ``vref``, ``out.v_ref[k]`` and the leader's row of ``v``;
     the distance to go into ``out.distance_to_go[k]``. With the route (``route`` not None)
@@ -588,7 +583,7 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
         out.distance_to_go[k] = togo
         if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
             eta = route_eta_goal(  # rule starts at 1)
-                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, scene.grid,
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, grid,
                 rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
             )  # fmt: skip
             out.eta[0] = eta
@@ -685,12 +680,16 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
 
 
 @njit(cache=True)
-def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
+def run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track, wide):
     """One run from ``inp.start`` for ``inp.target.shape[0] - 1`` steps; returns -1, or the
     step at which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
 
-    ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route and the
-    filter in the loop on (any array, e.g. ``np.empty(0)``) or off (``None``): Numba drops
+    ``grid`` is the obstacles' index (:func:`crlbswarm.obstacles.obstacle_grid`, reach
+    ``control.safety_radius``; an argument of its own, not a field of ``scene``: Numba's
+    parallel loops do not take a tuple of arrays inside a tuple): the obstacle work of a
+    UAV or of a sample of the eta rule depends on the obstacles near it, not on their
+    number. ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route
+    and the filter in the loop on (any array, e.g. ``np.empty(0)``) or off (``None``): Numba drops
     the code of a layer that is off, so a scenario compiles only what it uses (the paper's
     mission compiles none of the three). ``wide`` (an array, or None) runs the per-UAV
     work of each step on all threads, in blocks of :data:`UAV_BLOCK` UAVs (for one large
@@ -706,7 +705,7 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
     m_uavs = inp.start.shape[0]
     stride = const.stride
     rects, circles, indptr, indices = scene.rects, scene.circles, scene.indptr, scene.indices
-    snr, grid = scene.snr, scene.grid
+    snr = scene.snr
     keys, ids, delta = inp.keys, inp.ids, inp.delta
     target, target_velocity = inp.target, inp.target_velocity
     out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
@@ -751,7 +750,8 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
         sy += const.centre_y
         # Step 1: the leader's reference velocity toward its slot over the goal.
         eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
-                                circles, delta, scene, ctl, rule, const, out, route)  # fmt: skip
+                                circles, delta, scene, grid, ctl, rule, const, out,
+                                route)  # fmt: skip
         keep_state(keep_row(k, k_steps, stride), q, v, out_q, out_v)
         # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
         # and the formation input of eq. (19).
@@ -785,7 +785,7 @@ def run_mission(out, inp, scene, ctl, rule, const, safe, route, track, wide):
 
 
 @njit(cache=True, parallel=True)
-def run_batch(outs, inps, status, scene, ctl, rule, const, safe, route, track):
+def run_batch(outs, inps, status, scene, grid, ctl, rule, const, safe, route, track):
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
     with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
     ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`);
@@ -797,7 +797,8 @@ def run_batch(outs, inps, status, scene, ctl, rule, const, safe, route, track):
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip
-        status[b] = run_mission(out, inp, scene, ctl, rule, const, safe, route, track, None)
+        status[b] = run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track,
+                                None)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------
@@ -872,7 +873,9 @@ class GroupOutputs(NamedTuple):
 
 
 @njit(cache=True)
-def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step of every group
+def run_groups(
+    out, inp, scene, grid, ctl, rule, const, grp, safe
+):  # long: one step of every group
     """One run of a swarm split into groups, each flying its own formation to its own static
     target with its own leader, as :func:`run_mission` flies one (the same laws, called per
     group on the group's UAVs and graph, without the planner and the filter), while the
@@ -896,7 +899,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step 
     delta = inp.delta
     for k in range(k_steps + 1):
         q = out.q[k]
-        obstacle_pass(q, rep, clear, scene.grid, ctl, 0, m_uavs)  # all UAVs, one pass
+        obstacle_pass(q, rep, clear, grid, ctl, 0, m_uavs)  # all UAVs, one pass
         for g in range(n_groups):  # Step 1 per group: the leader's reference velocity.
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
             cx = 0.0
@@ -955,7 +958,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step 
             if rule.enabled:
                 goal = eta_goal(
                     centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], grp.radius[g],
-                    scene.grid, rule.margin, rule.lookahead, rule.samples, rule.minimum,
+                    grid, rule.margin, rule.lookahead, rule.samples, rule.minimum,
                 )  # fmt: skip
                 out.eta[k + 1, g] = eta_rate_limit(eta, goal, rule.rate * const.dt)
             else:
@@ -964,7 +967,7 @@ def run_groups(out, inp, scene, ctl, rule, const, grp, safe):  # long: one step 
 
 
 @njit(cache=True, parallel=True)
-def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp, safe):
+def run_group_batch(outs, inps, status, scene, grid, ctl, rule, const, grp, safe):
     """:func:`run_groups` for every run of a batch in parallel threads (``outs``/``inps``:
     tuples of arrays with a leading run axis, in the field order of
     :class:`GroupOutputs`/:class:`RunInputs`)."""
@@ -975,4 +978,4 @@ def run_group_batch(outs, inps, status, scene, ctl, rule, const, grp, safe):
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip
-        status[b] = run_groups(out, inp, scene, ctl, rule, const, grp, safe)
+        status[b] = run_groups(out, inp, scene, grid, ctl, rule, const, grp, safe)

@@ -240,9 +240,9 @@ def layer_markers(sc: Scenario) -> tuple[np.ndarray | None, np.ndarray | None, n
 
 
 def _kernel_arguments(sc: Scenario, stride: int = 1
-                      ) -> tuple[SceneArrays, Any, Any, MissionConstants]:  # fmt: skip
-    """The compiled mission's shared arrays, gains, eta rule and constants for ``sc``, with
-    the trajectories kept every ``stride`` steps (0: not kept)."""
+                      ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
+    """The compiled mission's shared arrays, obstacle grid, gains, eta rule and constants for
+    ``sc``, with the trajectories kept every ``stride`` steps (0: not kept)."""
     motion, est, safety = sc.target_motion, sc.estimation, sc.safety
     f_mat, q_mat, n = motion_matrices(
         motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
@@ -264,9 +264,6 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         nodes=nodes,
         node_dist=node_dist,
         next_node=next_node,
-        grid=obstacle_grid(
-            sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
-        ),
         snr=np.ascontiguousarray(
             np.broadcast_to(np.asarray(sc.radar_model.snr_constant, dtype=float), (sc.uavs.count,))
         ),
@@ -297,7 +294,10 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         sigma=float(sc.disturbance.sigma),
         stride=stride,
     )
-    return scene, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
+    grid = obstacle_grid(
+        sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
+    )
+    return scene, grid, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
 
 class _Batch:
@@ -399,8 +399,14 @@ def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers) -> Any:
     )  # fmt: skip
 
 
-def _run_chunk(sc: Scenario, seeds: np.ndarray, lo: int, batch: _Batch, buf: _ChunkBuffers,
-               kernel_args: tuple[SceneArrays, Any, Any, MissionConstants]) -> None:  # fmt: skip
+def _run_chunk(
+    sc: Scenario,
+    seeds: np.ndarray,
+    lo: int,
+    batch: _Batch,
+    buf: _ChunkBuffers,
+    kernel_args: tuple[SceneArrays, Any, Any, Any, MissionConstants],
+) -> None:
     """Simulate the runs ``lo .. lo + len(seeds) - 1`` of the batch."""
     n = len(seeds)
     hi = lo + n
@@ -545,7 +551,9 @@ def simulate(
     )
 
 
-def _group_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConstants, GroupArrays]:
+def _group_arguments(
+    sc: Scenario,
+) -> tuple[SceneArrays, Any, Any, Any, MissionConstants, GroupArrays]:
     """The compiled arguments of a mission with several targets: the scene, constants and
     safety settings of group 0's scenario (the same fields for every group), the gains with
     the smallest epsilon and gamma of the groups (each resolved on its own graph: stable for
@@ -553,7 +561,7 @@ def _group_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConsta
     plan = sc.group_plan
     assert plan is not None  # (called with extra targets only)
     scenarios = plan.scenarios
-    scene, _, _, const = _kernel_arguments(scenarios[0])
+    scene, grid, _, _, const = _kernel_arguments(scenarios[0])
     gains = [g.gains for g in scenarios]
     eps = min(float(g.epsilon) for g in gains)
     gamma = min(float(g.gamma) for g in gains)
@@ -575,7 +583,7 @@ def _group_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, MissionConsta
         ptr_off=np.concatenate([[0], np.cumsum([p.size for p in indptr])]).astype(np.int64),
         idx_off=np.concatenate([[0], np.cumsum([i.size for i in indices])]).astype(np.int64),
     )
-    return scene, ctl.kernel_tuple(), rule, const, groups
+    return scene, grid, ctl.kernel_tuple(), rule, const, groups
 
 
 def simulate_groups(
@@ -641,7 +649,7 @@ def simulate_groups(
         "scenario", f"{n_runs} runs of {k_steps} steps with {m_uavs} UAVs (several targets)",
         "use fewer runs per call, or fewer UAVs or steps",
     )  # fmt: skip
-    scene, ctl, rule, const, groups = _group_arguments(sc)
+    scene, grid, ctl, rule, const, groups = _group_arguments(sc)
     order = np.concatenate(plan.members)  # group order: row i is UAV order[i] of the swarm
     k1 = k_steps + 1
     q = np.empty((n_runs, k1, m_uavs, 2))
@@ -663,7 +671,7 @@ def simulate_groups(
     ids = np.broadcast_to(order.astype(np.int64), (n_runs, m_uavs)).copy()  # draws by swarm UAV
     inps = RunInputs(q[:, 0], keys, unused, unused, np.zeros((n_runs, 2)), delta, ids)
     status = np.empty(n_runs, dtype=np.int64)
-    run_group_batch(tuple(outs), tuple(inps), status, scene, ctl, rule, const, groups,
+    run_group_batch(tuple(outs), tuple(inps), status, scene, grid, ctl, rule, const, groups,
                     layer_markers(plan.scenarios[0])[0])  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
