@@ -55,7 +55,7 @@ from ._config import ConfigModel, PositiveFloat, describe
 from .errors import FieldError
 from .geometry import clip_norm
 from .graphs import Adjacency, auto_consensus_step, auto_formation_step
-from .obstacles import Obstacles, check_obstacles, clearance_grid, obstacle_grid, repulsion_at
+from .obstacles import Obstacles, check_obstacles, clearance_of, obstacle_index, repulsion_at
 from .planning import segment_clear
 
 __all__ = [
@@ -377,14 +377,14 @@ def reference_velocity(
 
 
 @njit(cache=True, inline="always")
-def corridor_width(px, py, hx, hy, radius, grid):
+def corridor_width(px, py, hx, hy, radius, rects, circles, index):
     """Half-width of the corridor's cross-section at (px, py), travelling along (hx, hy):
     the best clearance the formation's centre could have within +-radius across the path
     (the repulsion and the steering centre the formation), on ``LATERAL_SAMPLES`` points."""
     best = -math.inf
     for j in range(LATERAL_SAMPLES):
         o = radius * (2.0 * j / (LATERAL_SAMPLES - 1) - 1.0)
-        best = max(best, clearance_grid(px - o * hy, py + o * hx, grid))
+        best = max(best, clearance_of(px - o * hy, py + o * hx, rects, circles, index))
     return best
 
 
@@ -417,12 +417,12 @@ def eta_from_width(width, margin, radius, eta_min, dist):
 
 
 @njit(cache=True, _nrt=False)
-def eta_goal(cx, cy, sx, sy, radius, grid, margin, lookahead, n_samples, eta_min):
+def eta_goal(cx, cy, sx, sy, radius, rects, circles, index, margin, lookahead, n_samples,
+             eta_min):  # fmt: skip
     """Free half-width of the corridor ahead of the formation on the straight line to the
     target -> scale in [eta_min, 1], blended to 1 near the target (:func:`eta_target`).
-    ``grid``: the obstacles' index (:func:`crlbswarm.obstacles.obstacle_grid`; the clearance
-    of a sample is exact whatever its reach). Compiled kernel, no checks."""
-    rects, circles = grid.rects, grid.circles
+    ``index``: the obstacles' index, or None (:func:`crlbswarm.obstacles.obstacle_index`;
+    the clearance of a sample is exact either way). Compiled kernel, no checks."""
     if rects.shape[0] + circles.shape[0] == 0:
         return 1.0
     hx = sx - cx
@@ -446,17 +446,17 @@ def eta_goal(cx, cy, sx, sy, radius, grid, margin, lookahead, n_samples, eta_min
         t = -radius + (ahead + radius) * i / (n_samples - 1)
         px = cx + t * hx
         py = cy + t * hy
-        if clearance_grid(px, py, grid) >= enough:
+        if clearance_of(px, py, rects, circles, index) >= enough:
             continue  # the lateral best is at least as large: no effect on the result
-        width = min(width, corridor_width(px, py, hx, hy, radius, grid))
+        width = min(width, corridor_width(px, py, hx, hy, radius, rects, circles, index))
         if width <= floor:
             break  # clipped at eta_min whatever the remaining samples say
     return eta_from_width(width, margin, radius, eta_min, dist)
 
 
 @njit(cache=True, _nrt=False)
-def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, grid, margin, lookahead,
-                   n_samples, eta_min, planned=False):  # fmt: skip
+def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, index, margin,
+                   lookahead, n_samples, eta_min, planned=False):  # fmt: skip
     r"""The eta goal as flown: :func:`eta_goal` (the straight line to the target, the best
     point across it) without the planner (``planned`` False); with it, the scale at which
     the formation's disc fits at the points of its route itself: from the centre through
@@ -468,9 +468,9 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, grid, margin, lo
     along the segments from the target to its slots, which the scenario checks are clear):
     a wide formation may still have to round an obstacle within :math:`r^\star` of the
     target. Compiled kernel."""
-    rects, circles = grid.rects, grid.circles
     if not planned or rects.shape[0] + circles.shape[0] == 0:
-        return eta_goal(cx, cy, sx, sy, radius, grid, margin, lookahead, n_samples, eta_min)
+        return eta_goal(cx, cy, sx, sy, radius, rects, circles, index, margin, lookahead,
+                        n_samples, eta_min)  # fmt: skip
     dist = math.hypot(sx - cx, sy - cy)
     if k >= 0:
         length = math.hypot(nodes[k, 0] - cx, nodes[k, 1] - cy)  # the route's length ahead
@@ -494,7 +494,7 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, grid, margin, lo
             px, py, _, _ = route_point(cx, cy, k, nodes, next_node, t)
         else:
             px, py = cx + t * hx, cy + t * hy
-        width = min(width, clearance_grid(px, py, grid))
+        width = min(width, clearance_of(px, py, rects, circles, index))
         if width <= floor:
             break
     goal = min(1.0, max(eta_min, (width - margin) / radius))
@@ -614,10 +614,11 @@ def _reference_batch(
 
 
 @njit(cache=True)
-def _eta_goal_batch(c, s, radius, grid, margin, lookahead, n_samples, eta_min, out):
+def _eta_goal_batch(c, s, radius, rects, circles, index, margin, lookahead, n_samples, eta_min,
+                    out):  # fmt: skip
     for b in range(c.shape[0]):
-        out[b] = eta_goal(c[b, 0], c[b, 1], s[b, 0], s[b, 1], radius, grid, margin, lookahead,
-                          n_samples, eta_min)  # fmt: skip
+        out[b] = eta_goal(c[b, 0], c[b, 1], s[b, 0], s[b, 1], radius, rects, circles, index,
+                          margin, lookahead, n_samples, eta_min)  # fmt: skip
 
 
 @njit(cache=True)
@@ -1005,8 +1006,9 @@ def eta_target(
     cb = _flat(c, shape[:-1], (2,))
     sb = _flat(s, shape[:-1], (2,))
     out = np.empty(cb.shape[0])
-    grid = obstacle_grid(obs.rectangles, obs.circles, 0.0)
-    _eta_goal_batch(cb, sb, r, grid, mrg, rl.lookahead, rl.samples, rl.minimum, out)
+    index = obstacle_index(obs.rectangles, obs.circles, 0.0)
+    _eta_goal_batch(cb, sb, r, obs.rectangles, obs.circles, index, mrg, rl.lookahead,
+                    rl.samples, rl.minimum, out)  # fmt: skip
     return out.reshape(shape[:-1])
 
 

@@ -55,10 +55,10 @@ from .control import (
 from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
 from .fisher import fim_entries_at
-from .obstacles import obstacle_field
+from .obstacles import field_of
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
-from .spatial import min_separation, min_separation_parallel
+from .spatial import min_separation, min_separation_parallel, pair_separation
 from .tracking import filter_work, predict_into, update_into
 
 __all__ = [
@@ -73,6 +73,7 @@ __all__ = [
     "RunInputs",
     "RunOutputs",
     "SceneArrays",
+    "block_minimum",
     "carrot_point",
     "input_block",
     "keep_row",
@@ -88,6 +89,7 @@ __all__ = [
     "run_mission",
     "safe_displacement",
     "sense_target",
+    "separation_of",
     "state_block",
     "steering_footprint",
     "step_motion",
@@ -356,14 +358,15 @@ def sense_target(k, q, s_true, ranges, keys, ids, x, p_cov, const, work):
 
 
 @njit(cache=True, _nrt=False)
-def obstacle_pass(q, rep, clear, grid, ctl, lo, hi):
+def obstacle_pass(q, rep, clear, rects, circles, index, ctl, lo, hi):
     """One pass over the obstacles near each UAV ``lo .. hi - 1`` at ``q``
-    (:func:`crlbswarm.obstacles.obstacle_field` on the grid): its repulsion of eq. (18)
-    (into ``rep``) and its clearance (into ``clear``); returns the smallest clearance."""
+    (:func:`crlbswarm.obstacles.field_of` on the index, or on every obstacle when ``index``
+    is None): its repulsion of eq. (18) (into ``rep``) and its clearance (into ``clear``);
+    returns the smallest clearance."""
     smallest = math.inf
     for m in range(lo, hi):
-        clear[m], rep[m, 0], rep[m, 1] = obstacle_field(
-            q[m, 0], q[m, 1], grid, ctl.repulsion_gain, ctl.safety_radius,
+        clear[m], rep[m, 0], rep[m, 1] = field_of(
+            q[m, 0], q[m, 1], rects, circles, index, ctl.repulsion_gain, ctl.safety_radius,
             ctl.repulsion_max_step,
         )  # fmt: skip
         smallest = min(smallest, clear[m])
@@ -491,12 +494,12 @@ def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, p
 
 
 @njit(cache=True, _nrt=False)
-def input_block(b, lo, hi, q, delta, eta, u, rep, clear, grid, indptr, indices, ctl,
-                part):  # fmt: skip
+def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
+                indices, ctl, part):  # fmt: skip
     """The inputs of the UAVs ``lo .. hi - 1`` (block ``b``): one pass over the obstacles
     for each (its repulsion of eq. (18) into ``rep``, its clearance into ``clear``, the
     block's smallest into ``part[b, 5]``) and the formation input of eq. (19) into ``u``."""
-    part[b, 5] = obstacle_pass(q, rep, clear, grid, ctl, lo, hi)
+    part[b, 5] = obstacle_pass(q, rep, clear, rects, circles, index, ctl, lo, hi)
     formation_rows(q, delta, eta, ctl.epsilon, indptr, indices, u, lo, hi)
 
 
@@ -542,12 +545,12 @@ def _state_blocks(n_uavs, shift, q, q_next, v, v_next, tx, ty, altitude, snr, pa
 
 
 @njit(cache=True, parallel=True)
-def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, grid, indptr, indices, ctl,
-                  part):  # fmt: skip
+def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
+                  indices, ctl, part):  # fmt: skip
     for b in prange(part.shape[0]):
         lo = b * UAV_BLOCK
-        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, grid,
-                    indptr, indices, ctl, part)  # fmt: skip
+        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, rects,
+                    circles, index, indptr, indices, ctl, part)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)
@@ -569,7 +572,7 @@ def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, in
 
 @njit(cache=True, _nrt=False)
 def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles, delta, scene,
-                grid, ctl, rule, const, out, route):  # fmt: skip
+                index, ctl, rule, const, out, route):  # fmt: skip
     """Step 1: the leader's reference velocity toward its slot over the goal (sx, sy)
     (moving at tvx, tvy), into ``vref``, ``out.v_ref[k]`` and the leader's row of ``v``;
     the distance to go into ``out.distance_to_go[k]``. With the route (``route`` not None)
@@ -583,7 +586,8 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
         out.distance_to_go[k] = togo
         if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
             eta = route_eta_goal(  # rule starts at 1)
-                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, grid,
+                cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects,
+                circles, index,
                 rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
             )  # fmt: skip
             out.eta[0] = eta
@@ -604,7 +608,7 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
 
 
 @njit(cache=True, _nrt=False)
-def next_eta(cx, cy, sx, sy, eta, node, grid, scene, rule, const, route):
+def next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule, const, route):
     """The next step's scaling factor: the eta rule's goal along the route (the straight
     line to the goal (sx, sy) without the planner), approached at the rule's rate; 1 with
     the rule off."""
@@ -612,13 +616,34 @@ def next_eta(cx, cy, sx, sy, eta, node, grid, scene, rule, const, route):
         return 1.0
     if route is not None:
         goal = route_eta_goal(
-            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, grid, rule.margin,
-            rule.lookahead, rule.samples, rule.minimum, True,
+            cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects, circles,
+            index, rule.margin, rule.lookahead, rule.samples, rule.minimum, True,
         )  # fmt: skip
     else:
-        goal = eta_goal(cx, cy, sx, sy, const.radius, grid, rule.margin, rule.lookahead,
-                        rule.samples, rule.minimum)  # fmt: skip
+        goal = eta_goal(cx, cy, sx, sy, const.radius, rects, circles, index, rule.margin,
+                        rule.lookahead, rule.samples, rule.minimum)  # fmt: skip
     return eta_rate_limit(eta, goal, rule.rate * const.dt)
+
+
+@njit(cache=True)
+def separation_of(q, wide, crowd):
+    """The smallest distance between two UAVs: every pair (``crowd`` None: few UAVs; the
+    cell list is then not compiled), the cell list (:func:`crlbswarm.spatial.min_separation`),
+    or its search on all threads (``wide``)."""
+    if wide is not None:
+        return min_separation_parallel(q)
+    if crowd is not None:
+        return min_separation(q)
+    return pair_separation(q)
+
+
+@njit(cache=True, _nrt=False)
+def block_minimum(part, column):
+    """The smallest value of ``part[:, column]`` (over the blocks)."""
+    best = math.inf
+    for b in range(part.shape[0]):
+        best = min(best, part[b, column])
+    return best
 
 
 @njit(cache=True, inline="always")
@@ -680,18 +705,21 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
 
 
 @njit(cache=True)
-def run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track, wide):
+def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wide, crowd):
     """One run from ``inp.start`` for ``inp.target.shape[0] - 1`` steps; returns -1, or the
     step at which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
 
-    ``grid`` is the obstacles' index (:func:`crlbswarm.obstacles.obstacle_grid`, reach
+    ``index`` is the obstacles' index (:func:`crlbswarm.obstacles.obstacle_index`, reach
     ``control.safety_radius``; an argument of its own, not a field of ``scene``: Numba's
-    parallel loops do not take a tuple of arrays inside a tuple): the obstacle work of a
-    UAV or of a sample of the eta rule depends on the obstacles near it, not on their
-    number. ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route
+    parallel loops do not take a tuple of arrays inside a tuple): with it the obstacle work
+    of a UAV or of a sample of the eta rule depends on the obstacles near it, not on their
+    number; None for a few obstacles (a loop over them; the grid's code is not compiled).
+    ``safe``, ``route`` and ``track`` switch the safety filter, the planner's route
     and the filter in the loop on (any array, e.g. ``np.empty(0)``) or off (``None``): Numba drops
     the code of a layer that is off, so a scenario compiles only what it uses (the paper's
-    mission compiles none of the three). ``wide`` (an array, or None) runs the per-UAV
+    mission compiles none of the three). ``crowd`` (an array, or None for at most
+    :data:`crlbswarm.spatial.SEPARATION_BRUTE_FORCE_MAX` UAVs) selects the cell list for
+    the smallest separation instead of every pair. ``wide`` (an array, or None) runs the per-UAV
     work of each step on all threads, in blocks of :data:`UAV_BLOCK` UAVs (for one large
     swarm). The per-UAV work is done block by block either way and the blocks' partial
     sums are added in block order, so the results do not depend on ``wide`` or the
@@ -750,24 +778,21 @@ def run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track, wid
         sy += const.centre_y
         # Step 1: the leader's reference velocity toward its slot over the goal.
         eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
-                                circles, delta, scene, grid, ctl, rule, const, out,
+                                circles, delta, scene, index, ctl, rule, const, out,
                                 route)  # fmt: skip
         keep_state(keep_row(k, k_steps, stride), q, v, out_q, out_v)
         # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
         # and the formation input of eq. (19).
         if wide is not None:
-            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, grid, indptr,
+            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
                           indices, ctl, part)  # fmt: skip
         else:
             for b in range(n_blocks):
                 lo = b * UAV_BLOCK
                 input_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, delta, eta, u, rep, clear,
-                            grid, indptr, indices, ctl, part)  # fmt: skip
-        out_clear[k] = part[:, 5].min()
-        if wide is not None:
-            out_sep[k] = min_separation_parallel(q)
-        else:
-            out_sep[k] = min_separation(q)
+                            rects, circles, index, indptr, indices, ctl, part)  # fmt: skip
+        out_clear[k] = block_minimum(part, 5)
+        out_sep[k] = separation_of(q, wide, crowd)
         if k == k_steps:
             break
         # Step 2: the motion of eq. (3) (through the safety filter when it is on), the cost
@@ -778,14 +803,15 @@ def run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track, wid
         if not step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
                            indices, ctl, const, filtered, part, out_cost, wide):  # fmt: skip
             return k + 1
-        out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, grid, scene, rule, const, route)
+        out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule,
+                                  const, route)  # fmt: skip
         if track is not None:  # Step 3: prediction with the target's motion model.
             predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
 
 
 @njit(cache=True, parallel=True)
-def run_batch(outs, inps, status, scene, grid, ctl, rule, const, safe, route, track):
+def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, track, crowd):
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
     with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
     ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`);
@@ -797,8 +823,8 @@ def run_batch(outs, inps, status, scene, grid, ctl, rule, const, safe, route, tr
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip
-        status[b] = run_mission(out, inp, scene, grid, ctl, rule, const, safe, route, track,
-                                None)  # fmt: skip
+        status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track,
+                                None, crowd)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------
@@ -874,7 +900,7 @@ class GroupOutputs(NamedTuple):
 
 @njit(cache=True)
 def run_groups(
-    out, inp, scene, grid, ctl, rule, const, grp, safe
+    out, inp, scene, index, ctl, rule, const, grp, safe
 ):  # long: one step of every group
     """One run of a swarm split into groups, each flying its own formation to its own static
     target with its own leader, as :func:`run_mission` flies one (the same laws, called per
@@ -899,7 +925,7 @@ def run_groups(
     delta = inp.delta
     for k in range(k_steps + 1):
         q = out.q[k]
-        obstacle_pass(q, rep, clear, grid, ctl, 0, m_uavs)  # all UAVs, one pass
+        obstacle_pass(q, rep, clear, rects, circles, index, ctl, 0, m_uavs)  # all UAVs, one pass
         for g in range(n_groups):  # Step 1 per group: the leader's reference velocity.
             lo, hi = grp.bounds[g], grp.bounds[g + 1]
             cx = 0.0
@@ -958,7 +984,7 @@ def run_groups(
             if rule.enabled:
                 goal = eta_goal(
                     centre[g, 0], centre[g, 1], grp.goals[g, 0], grp.goals[g, 1], grp.radius[g],
-                    grid, rule.margin, rule.lookahead, rule.samples, rule.minimum,
+                    rects, circles, index, rule.margin, rule.lookahead, rule.samples, rule.minimum,
                 )  # fmt: skip
                 out.eta[k + 1, g] = eta_rate_limit(eta, goal, rule.rate * const.dt)
             else:
@@ -967,7 +993,7 @@ def run_groups(
 
 
 @njit(cache=True, parallel=True)
-def run_group_batch(outs, inps, status, scene, grid, ctl, rule, const, grp, safe):
+def run_group_batch(outs, inps, status, scene, index, ctl, rule, const, grp, safe):
     """:func:`run_groups` for every run of a batch in parallel threads (``outs``/``inps``:
     tuples of arrays with a leading run axis, in the field order of
     :class:`GroupOutputs`/:class:`RunInputs`)."""
@@ -978,4 +1004,4 @@ def run_group_batch(outs, inps, status, scene, grid, ctl, rule, const, grp, safe
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip
-        status[b] = run_groups(out, inp, scene, grid, ctl, rule, const, grp, safe)
+        status[b] = run_groups(out, inp, scene, index, ctl, rule, const, grp, safe)

@@ -45,10 +45,13 @@ __all__ = [
     "circle_distance",
     "clearance_at",
     "clearance_grid",
+    "clearance_of",
+    "field_of",
     "obstacle_clearance",
     "obstacle_distance",
     "obstacle_field",
     "obstacle_grid",
+    "obstacle_index",
     "rectangle_distance",
     "repulsion_at",
 ]
@@ -245,8 +248,10 @@ def obstacle_clearance(positions: ArrayLike, obstacles: Obstacles) -> np.ndarray
 # Uniform-grid index: the obstacles near a point, and its clearance and repulsion in one pass
 # ---------------------------------------------------------------------------------------
 #: Obstacle count up to which :func:`obstacle_grid` builds no index: the queries loop over
-#: every obstacle (the paper's scene has two).
-GRID_DIRECT_MAX = 16
+#: every obstacle (the paper's scene has two). A loop over 64 obstacles costs about as much
+#: as the grid's ring search for a point far from every obstacle (the clearance must find
+#: the nearest one, however far), so below this count the index does not pay.
+GRID_DIRECT_MAX = 64
 
 #: Most cells an :class:`ObstacleGrid` ever has (whatever the obstacle count).
 GRID_MAX_CELLS = 1 << 20
@@ -484,7 +489,7 @@ def _rings_left(x, y, best, slack, r, ci, cj, geometry, bounds):
     return stop > 0.0 and stop * stop > lb
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def obstacle_field(x, y, grid, gain, l_safe, max_step, inflate=0.0):  # long: one flat body
     r"""Clearance and eq. (18) repulsion at (x, y) in one pass over the nearby obstacles.
 
@@ -581,7 +586,7 @@ def obstacle_field(x, y, grid, gain, l_safe, max_step, inflate=0.0):  # long: on
     return best, rx, ry
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def clearance_grid(x, y, grid):
     """Signed distance from (x, y) to the nearest obstacle (+inf without obstacles), through
     the index: equal to ``clearance_at(x, y, rects, circles)`` bit for bit (it is
@@ -601,3 +606,50 @@ def clearance_grid(x, y, grid):
         Clearance, m.
     """
     return obstacle_field(x, y, grid, 0.0, -math.inf, math.inf)[0]
+
+
+# ---------------------------------------------------------------------------------------
+# The index when it pays: the kernels take ``index`` None (few obstacles) or a grid
+# ---------------------------------------------------------------------------------------
+def obstacle_index(rects: ArrayLike, circles: ArrayLike, reach: float) -> ObstacleGrid | None:
+    """The index a compiled caller takes (:func:`field_of`, :func:`clearance_of`): None up to
+    :data:`GRID_DIRECT_MAX` obstacles (the caller then loops over them, and Numba compiles
+    none of the grid's code for it), else :func:`obstacle_grid`.
+
+    Parameters
+    ----------
+    rects : array_like, shape (R, 4)
+        Rectangles, as in :class:`Obstacles`.
+    circles : array_like, shape (C, 3)
+        Circles.
+    reach : float
+        The largest distance at which a query needs exact per-obstacle terms, m.
+
+    Returns
+    -------
+    ObstacleGrid or None
+        The index, or None when it would not pay.
+    """
+    grid = obstacle_grid(rects, circles, reach)
+    return None if grid.direct else grid
+
+
+@njit(cache=True, _nrt=False)
+def clearance_of(x, y, rects, circles, index):
+    """Signed distance from (x, y) to the nearest obstacle: :func:`clearance_grid` on
+    ``index``, or, with ``index`` None, :func:`clearance_at` over every obstacle (the same
+    bits). Compiled kernel, no checks."""
+    if index is not None:
+        return clearance_grid(x, y, index)
+    return clearance_at(x, y, rects, circles)
+
+
+@njit(cache=True, _nrt=False)
+def field_of(x, y, rects, circles, index, gain, l_safe, max_step):
+    """``(clearance, rx, ry)`` at (x, y): :func:`obstacle_field` on ``index``, or, with
+    ``index`` None, :func:`clearance_at` and :func:`repulsion_at` over every obstacle (the
+    same bits). Compiled kernel, no checks."""
+    if index is not None:
+        return obstacle_field(x, y, index, gain, l_safe, max_step)
+    rx, ry = repulsion_at(x, y, rects, circles, gain, l_safe, max_step)
+    return clearance_at(x, y, rects, circles), rx, ry

@@ -41,10 +41,11 @@ from .mission_kernel import (
     run_group_batch,
     run_mission,
 )
-from .obstacles import obstacle_grid
+from .obstacles import obstacle_index
 from .planning import assign_slots
 from .results import GroupMissionResult, MissionResult, kept_rows, result_nbytes
 from .scenario import Scenario
+from .spatial import SEPARATION_BRUTE_FORCE_MAX
 from .tracking import motion_matrices, posterior_crlb, target_trajectories
 
 __all__ = [
@@ -239,6 +240,11 @@ def layer_markers(sc: Scenario) -> tuple[np.ndarray | None, np.ndarray | None, n
     )
 
 
+def _crowd(sc: Scenario) -> np.ndarray | None:
+    """The kernel's marker of a swarm whose smallest separation needs the cell list."""
+    return _ON if sc.uavs.count > SEPARATION_BRUTE_FORCE_MAX else None
+
+
 def _kernel_arguments(sc: Scenario, stride: int = 1
                       ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
     """The compiled mission's shared arrays, obstacle grid, gains, eta rule and constants for
@@ -294,10 +300,10 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         sigma=float(sc.disturbance.sigma),
         stride=stride,
     )
-    grid = obstacle_grid(
+    index = obstacle_index(
         sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
     )
-    return scene, grid, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
+    return scene, index, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
 
 
 class _Batch:
@@ -431,9 +437,10 @@ def _run_chunk(
         wide = _ON if sc.uavs.count >= WIDE_UAVS and numba.get_num_threads() > 1 else None
         status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
                                 RunInputs(*(a[0] for a in inps)), *kernel_args,
-                                *layer_markers(sc), wide)  # fmt: skip
+                                *layer_markers(sc), wide, _crowd(sc))  # fmt: skip
     else:
-        run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc))
+        run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc),
+                  _crowd(sc))  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
@@ -561,7 +568,7 @@ def _group_arguments(
     plan = sc.group_plan
     assert plan is not None  # (called with extra targets only)
     scenarios = plan.scenarios
-    scene, grid, _, _, const = _kernel_arguments(scenarios[0])
+    scene, index, _, _, const = _kernel_arguments(scenarios[0])
     gains = [g.gains for g in scenarios]
     eps = min(float(g.epsilon) for g in gains)
     gamma = min(float(g.gamma) for g in gains)
@@ -583,7 +590,7 @@ def _group_arguments(
         ptr_off=np.concatenate([[0], np.cumsum([p.size for p in indptr])]).astype(np.int64),
         idx_off=np.concatenate([[0], np.cumsum([i.size for i in indices])]).astype(np.int64),
     )
-    return scene, grid, ctl.kernel_tuple(), rule, const, groups
+    return scene, index, ctl.kernel_tuple(), rule, const, groups
 
 
 def simulate_groups(
@@ -649,7 +656,7 @@ def simulate_groups(
         "scenario", f"{n_runs} runs of {k_steps} steps with {m_uavs} UAVs (several targets)",
         "use fewer runs per call, or fewer UAVs or steps",
     )  # fmt: skip
-    scene, grid, ctl, rule, const, groups = _group_arguments(sc)
+    scene, index, ctl, rule, const, groups = _group_arguments(sc)
     order = np.concatenate(plan.members)  # group order: row i is UAV order[i] of the swarm
     k1 = k_steps + 1
     q = np.empty((n_runs, k1, m_uavs, 2))
@@ -671,7 +678,7 @@ def simulate_groups(
     ids = np.broadcast_to(order.astype(np.int64), (n_runs, m_uavs)).copy()  # draws by swarm UAV
     inps = RunInputs(q[:, 0], keys, unused, unused, np.zeros((n_runs, 2)), delta, ids)
     status = np.empty(n_runs, dtype=np.int64)
-    run_group_batch(tuple(outs), tuple(inps), status, scene, grid, ctl, rule, const, groups,
+    run_group_batch(tuple(outs), tuple(inps), status, scene, index, ctl, rule, const, groups,
                     layer_markers(plan.scenarios[0])[0])  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:

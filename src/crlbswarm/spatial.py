@@ -22,6 +22,7 @@ __all__ = [
     "SEPARATION_BRUTE_FORCE_MAX",
     "min_separation",
     "min_separation_parallel",
+    "pair_separation",
     "smallest_separation",
 ]
 
@@ -38,6 +39,21 @@ def min_separation(q):
     return _min_separation(q, None)
 
 
+@njit(cache=True, _nrt=False)
+def pair_separation(q):
+    """Smallest distance between two of the points ``q`` (M, 2) by checking every pair
+    (+inf for fewer than two points): :func:`min_separation` for small swarms. Compiled
+    kernel, no checks."""
+    n = q.shape[0]
+    best = math.inf
+    for m in range(n):
+        for p in range(m + 1, n):
+            dx = q[m, 0] - q[p, 0]
+            dy = q[m, 1] - q[p, 1]
+            best = min(best, dx * dx + dy * dy)
+    return math.sqrt(best)
+
+
 @njit(cache=True)
 def min_separation_parallel(q):
     """:func:`min_separation` with the cell list's search on all threads (for one large
@@ -51,13 +67,7 @@ def _min_separation(q, wide):
     if n < 2:
         return math.inf
     if n <= SEPARATION_BRUTE_FORCE_MAX:
-        best = math.inf
-        for m in range(n):
-            for p in range(m + 1, n):
-                dx = q[m, 0] - q[p, 0]
-                dy = q[m, 1] - q[p, 1]
-                best = min(best, dx * dx + dy * dy)
-        return math.sqrt(best)
+        return pair_separation(q)
     x0, x1 = q[:, 0].min(), q[:, 0].max()
     y0, y1 = q[:, 1].min(), q[:, 1].max()
     # Cells of about one UAV each; a pair closer than the cell size is always found in the
