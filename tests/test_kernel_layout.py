@@ -18,7 +18,7 @@ import crlbswarm as cs
 from crlbswarm import control, simulation
 from crlbswarm.counter_rng import DISTURBANCE, standard_normals
 from crlbswarm.errors import FieldError
-from crlbswarm.obstacles import Obstacles, clearance_at, obstacle_grid
+from crlbswarm.obstacles import Obstacles, clearance_at
 from crlbswarm.results import kept_rows
 
 ARRAYS = ("positions", "velocities", "crlb", "eta", "centroid", "cost", "clearance",
@@ -171,13 +171,10 @@ def test_wide_mission_is_bit_identical_to_the_serial_one(monkeypatch):
 # ---------------------------------------------------------------------------------------
 def test_mission_on_the_grid_equals_the_mission_on_every_obstacle(monkeypatch):
     sc = _swarm(60, 40, circles=80, seed=3)
+    assert simulation.obstacle_index(sc.obstacle_set.rectangles, sc.obstacle_set.circles,
+                                     5.0) is not None  # fmt: skip
     grid = cs.simulate(sc, seeds=range(2))
-    built = obstacle_grid
-
-    def direct(rects, circles, reach, **_):
-        return built(rects, circles, reach, direct=True)
-
-    monkeypatch.setattr(simulation, "obstacle_grid", direct)
+    monkeypatch.setattr(simulation, "obstacle_index", lambda *args: None)  # every obstacle
     every = cs.simulate(sc, seeds=range(2))
     _same(grid, every)
 

@@ -899,9 +899,7 @@ class GroupOutputs(NamedTuple):
 
 
 @njit(cache=True)
-def run_groups(
-    out, inp, scene, index, ctl, rule, const, grp, safe
-):  # long: one step of every group
+def run_groups(out, inp, scene, index, ctl, rule, const, grp, safe):  # long: every group
     """One run of a swarm split into groups, each flying its own formation to its own static
     target with its own leader, as :func:`run_mission` flies one (the same laws, called per
     group on the group's UAVs and graph, without the planner and the filter), while the
