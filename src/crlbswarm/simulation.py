@@ -63,7 +63,7 @@ __all__ = [
 #: Largest number of runs simulated per chunk.
 CHUNK_RUNS = 256
 
-#: Memory budget of the per-chunk work buffers (pre-drawn disturbance), bytes.
+#: Memory budget of the per-chunk work buffers (FIM per step, inputs and state), bytes.
 CHUNK_BYTES = 64 * 2**20
 
 #: Most seeds taken from an iterator other than a ``range`` (which is checked without
