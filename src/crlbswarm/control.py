@@ -52,6 +52,7 @@ from pydantic import Field, PlainValidator, ValidationError
 
 from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat, describe
+from ._numba import leaf
 from .errors import FieldError
 from .geometry import clip_norm
 from .graphs import Adjacency, auto_consensus_step, auto_formation_step
@@ -307,7 +308,7 @@ def consensus_update(v, v_ref, leader, indptr, indices, gamma, out):
     consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, 0, v.shape[0])
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, lo, hi):
     """:func:`consensus_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
     swarm; the law's one writing)."""
@@ -337,7 +338,7 @@ def formation_update(q, delta, eta, eps, indptr, indices, out):
     formation_rows(q, delta, eta, eps, indptr, indices, out, 0, q.shape[0])
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def formation_rows(q, delta, eta, eps, indptr, indices, out, lo, hi):
     """:func:`formation_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
     swarm; the law's one writing)."""
@@ -360,7 +361,7 @@ def motion_model(q, u, u_r, v, dt, n):
     return q + u + u_r + v * dt + n
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def reference_velocity(
     qx, qy, gx, gy, cx, cy, gain, cruise, tvx, tvy, rects, circles, e_r, l_safe, footprint, dt
 ):
@@ -416,7 +417,7 @@ def eta_from_width(width, margin, radius, eta_min, dist):
     return goal + (1.0 - goal) * (1.0 - w)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def eta_goal(cx, cy, sx, sy, radius, rects, circles, index, margin, lookahead, n_samples,
              eta_min):  # fmt: skip
     """Free half-width of the corridor ahead of the formation on the straight line to the
@@ -454,7 +455,7 @@ def eta_goal(cx, cy, sx, sy, radius, rects, circles, index, margin, lookahead, n
     return eta_from_width(width, margin, radius, eta_min, dist)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, index, margin,
                    lookahead, n_samples, eta_min, planned=False):  # fmt: skip
     r"""The eta goal as flown: :func:`eta_goal` (the straight line to the target, the best
@@ -504,7 +505,7 @@ def route_eta_goal(cx, cy, sx, sy, k, nodes, next_node, radius, rects, circles, 
     return goal
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def route_clear(cx, cy, hx, hy, k, nodes, next_node, behind, ahead, rects, circles, keep):
     """Whether the route from ``behind`` m behind the centre (cx, cy) to ``ahead`` m along it
     (through ``nodes[k]`` and its successors; ``k < 0``: the straight line along (hx, hy))
@@ -529,7 +530,7 @@ def route_clear(cx, cy, hx, hy, k, nodes, next_node, behind, ahead, rects, circl
         j = next_node[j]
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def route_point(cx, cy, k, nodes, next_node, t):
     """The point at arc length ``t`` along the route from (cx, cy) through ``nodes[k]`` and
     its successors (``t < 0``: behind, on the first leg's line), and the unit direction of
@@ -562,7 +563,7 @@ def control_cost(q, q_next, delta, v_ref, dt, indptr, indices):
     return cost_rows(q, q_next, delta, v_ref, dt, indptr, indices, 0, q.shape[0])
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def cost_rows(q, q_next, delta, v_ref, dt, indptr, indices, lo, hi):
     """The terms of :func:`control_cost` of the UAVs ``lo .. hi - 1``, summed in order (a
     block of a large swarm; the law's one writing)."""

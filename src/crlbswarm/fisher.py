@@ -39,6 +39,7 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
+from ._numba import leaf
 from .errors import FieldError
 from .geometry import check_scene
 from .radar import Radar, check_radar
@@ -120,7 +121,7 @@ def _fim_entries(
     return out[:, 0].reshape(batch), out[:, 1].reshape(batch), out[:, 2].reshape(batch)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def fim_entries_at(q, sx, sy, altitude, snr):
     r"""Eq. (9) for one formation: ``(J_xx, J_yy, J_xy)`` of the UAVs ``q`` (M, 2) at
     ``altitude`` about the target (sx, sy), with each UAV's :math:`A_m` in ``snr`` (M,):

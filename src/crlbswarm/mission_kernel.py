@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ._numba import leaf
 from ._validation import MAX_COORDINATE
 from .control import (
     consensus_rows,
@@ -316,7 +317,7 @@ class RunOutputs(NamedTuple):
     fim: np.ndarray
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def keep_state(row, q, v, out_q, out_v):
     """Copy the positions and velocities into row ``row`` of the kept trajectories (none if
     ``row`` is negative, :func:`keep_row`)."""
@@ -357,7 +358,7 @@ def sense_target(k, q, s_true, ranges, keys, ids, x, p_cov, const, work):
     return x, p_cov
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def obstacle_pass(q, rep, clear, rects, circles, index, ctl, lo, hi):
     """One pass over the obstacles near each UAV ``lo .. hi - 1`` at ``q``
     (:func:`crlbswarm.obstacles.field_of` on the index, or on every obstacle when ``index``
@@ -471,7 +472,7 @@ def passed_nodes(cx, cy, k, nodes, next_node, reach):
     return k
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, part):
     """Start of a step for the UAVs ``lo .. hi - 1`` (block ``b``): take the state of the
     step (``shift``: copy it from ``q_next``, ``v_next``), and write the block's sums of
@@ -493,7 +494,7 @@ def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, p
     part[b, 2], part[b, 3], part[b, 4] = fim_entries_at(q[lo:hi], tx, ty, altitude, snr[lo:hi])
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
                 indices, ctl, part):  # fmt: skip
     """The inputs of the UAVs ``lo .. hi - 1`` (block ``b``): one pass over the obstacles
@@ -503,7 +504,7 @@ def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, index, 
     formation_rows(q, delta, eta, ctl.epsilon, indptr, indices, u, lo, hi)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def motion_block(b, lo, hi, k, q, q_next, v, u, rep, keys, ids, const, filtered, part):
     """Eq. (3) for the UAVs ``lo .. hi - 1`` (block ``b``) from ``q`` (step k) to
     ``q_next``, with the disturbance ``sigma`` times the pair of counter ``(k, ids[m],
@@ -527,7 +528,7 @@ def motion_block(b, lo, hi, k, q, q_next, v, u, rep, keys, ids, const, filtered,
     part[b, 6] = bad
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def update_block(b, lo, hi, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl,
                  dt, part):  # fmt: skip
     """After the motion, for the UAVs ``lo .. hi - 1`` (block ``b``): their terms of the
@@ -570,7 +571,7 @@ def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, in
                      leader, indptr, indices, ctl, dt, part)  # fmt: skip
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles, delta, scene,
                 index, ctl, rule, const, out, route):  # fmt: skip
     """Step 1: the leader's reference velocity toward its slot over the goal (sx, sy)
@@ -607,7 +608,7 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
     return eta, node
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule, const, route):
     """The next step's scaling factor: the eta rule's goal along the route (the straight
     line to the goal (sx, sy) without the planner), approached at the rule's rate; 1 with
@@ -637,7 +638,7 @@ def separation_of(q, wide, crowd):
     return pair_separation(q)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def block_minimum(part, column):
     """The smallest value of ``part[:, column]`` (over the blocks)."""
     best = math.inf

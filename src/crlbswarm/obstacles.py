@@ -33,6 +33,7 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
+from ._numba import leaf
 from .errors import FieldError
 from .geometry import clip_norm
 
@@ -489,7 +490,7 @@ def _rings_left(x, y, best, slack, r, ci, cj, geometry, bounds):
     return stop > 0.0 and stop * stop > lb
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def obstacle_field(x, y, grid, gain, l_safe, max_step, inflate=0.0):  # long: one flat body
     r"""Clearance and eq. (18) repulsion at (x, y) in one pass over the nearby obstacles.
 
@@ -506,10 +507,11 @@ def obstacle_field(x, y, grid, gain, l_safe, max_step, inflate=0.0):  # long: on
     ``l_safe + inflate`` exceeds ``grid.reach``, or for a non-finite point. Compiled
     kernel, no checks; ``l_safe > 0``.
 
-    Inlined into its caller (Numba ``inline="always"``) and written as one flat body:
-    called, or split into helpers that take arrays and loop, it would increment and
-    decrement the reference counts of the index's arrays on every call, which costs more
-    than the query.
+    Compiled without reference counting (``_nrt=False``: it allocates nothing) and written
+    as one flat body: otherwise every call would increment and decrement the reference
+    counts of the index's arrays, which costs more than the query. It is not inlined
+    (``inline="always"`` repeats the type inference of this large body at every call
+    site: the first compile of a mission took 47 s).
 
     Parameters
     ----------
@@ -586,12 +588,12 @@ def obstacle_field(x, y, grid, gain, l_safe, max_step, inflate=0.0):  # long: on
     return best, rx, ry
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def clearance_grid(x, y, grid):
     """Signed distance from (x, y) to the nearest obstacle (+inf without obstacles), through
     the index: equal to ``clearance_at(x, y, rects, circles)`` bit for bit (it is
-    :func:`obstacle_field` without repulsion; inlined into its caller likewise). Compiled
-    kernel, no checks.
+    :func:`obstacle_field` without repulsion; compiled likewise). Compiled kernel, no
+    checks.
 
     Parameters
     ----------
@@ -634,7 +636,7 @@ def obstacle_index(rects: ArrayLike, circles: ArrayLike, reach: float) -> Obstac
     return None if grid.direct else grid
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def clearance_of(x, y, rects, circles, index):
     """Signed distance from (x, y) to the nearest obstacle: :func:`clearance_grid` on
     ``index``, or, with ``index`` None, :func:`clearance_at` over every obstacle (the same
@@ -644,7 +646,7 @@ def clearance_of(x, y, rects, circles, index):
     return clearance_at(x, y, rects, circles)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def field_of(x, y, rects, circles, index, gain, l_safe, max_step):
     """``(clearance, rx, ry)`` at (x, y): :func:`obstacle_field` on ``index``, or, with
     ``index`` None, :func:`clearance_at` and :func:`repulsion_at` over every obstacle (the

@@ -57,6 +57,7 @@ from pydantic import Field
 
 from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat
+from ._numba import leaf
 from .errors import FieldError
 from .obstacles import (
     Obstacles,
@@ -202,7 +203,7 @@ def _segment_rect_clear(ax, ay, bx, by, xmin, xmax, ymin, ymax, delta):
     return True
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def _clear_from(ax, ay, bx, by, rects, circles, inflation, relax):
     """Segment clearance; with ``relax``, an obstacle whose inflated region contains ``a``
     only forbids going deeper than ``a`` (and is ignored if ``a`` is inside the obstacle)."""
@@ -240,7 +241,7 @@ def _clear_from(ax, ay, bx, by, rects, circles, inflation, relax):
     return True
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def segment_clear(ax, ay, bx, by, rects, circles, inflation):
     """Whether the segment from (ax, ay) to (bx, by) keeps at least ``inflation`` (m, less
     :data:`CLEAR_TOL`) from every obstacle: exact segment-to-rectangle and segment-to-disc

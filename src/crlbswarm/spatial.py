@@ -16,6 +16,7 @@ from numba import njit, prange
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
+from ._numba import leaf
 
 __all__ = [
     "SEPARATION_BLOCK",
@@ -39,7 +40,7 @@ def min_separation(q):
     return _min_separation(q, None)
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def pair_separation(q):
     """Smallest distance between two of the points ``q`` (M, 2) by checking every pair
     (+inf for fewer than two points): :func:`min_separation` for small swarms. Compiled
@@ -111,7 +112,7 @@ def _min_separation(q, wide):
 SEPARATION_BLOCK = 1024
 
 
-@njit(cache=True, _nrt=False)
+@leaf
 def _search(q, key, start, order, ny, nx, limit, lo, hi):
     """Smallest squared distance below ``limit`` from a UAV ``lo .. hi - 1`` to a UAV of
     higher index in its own or a neighbouring cell (``limit`` if none)."""
