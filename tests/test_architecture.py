@@ -63,8 +63,8 @@ def _modules() -> dict[str, ast.Module]:
 
 
 def test_no_private_name_crosses_a_module():
-    """Private *modules* (``_validation``, ``_config``, ``_numba``) are the package's shared helpers;
-    private *names* stay in the module that defines them."""
+    """Private *modules* (``_validation``, ``_config``, ``_numba``) are the package's shared
+    helpers; private *names* stay in the module that defines them."""
     crossings = []
     for name, tree in _modules().items():
         for node in ast.walk(tree):
