@@ -315,3 +315,17 @@ def test_random_connected_graphs(graph_spec, data):
 def test_explicit_edges_must_be_integers():
     with pytest.raises(ValueError, match=r"^graph\.edges\[0\]"):
         communication_graph("edges", 3, edges=[[0, 1.7], [1, 2]])
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 7, 100, 1001])
+def test_ring_adjacency_is_the_ring_graph(n):
+    """The ring built directly (the scenario's path for the paper's graph) has the arrays
+    of the networkx ring."""
+    from crlbswarm.graphs import Adjacency, communication_graph, ring_adjacency
+
+    direct = ring_adjacency(n)
+    ref = Adjacency.from_graph(communication_graph("ring", n))
+    np.testing.assert_array_equal(direct.indptr, ref.indptr)
+    np.testing.assert_array_equal(direct.indices, ref.indices)
+    assert direct.indptr.dtype == ref.indptr.dtype
+    assert direct.indices.dtype == ref.indices.dtype

@@ -36,7 +36,8 @@ Laws and the choices the paper leaves open (each documented in ``docs/control.md
 
 Adding a control law: write it as an ``@njit`` function on one formation below, wrap it in a
 public function that validates and batches, declare its gains in :class:`ControlGains`, and
-call it from :func:`crlbswarm.mission_kernel.control_step`.
+call it from the mission kernel's block where its inputs are ready
+(:func:`crlbswarm.mission_kernel.input_block` or :func:`crlbswarm.mission_kernel.update_block`).
 """
 
 from __future__ import annotations

@@ -46,6 +46,7 @@ __all__ = [
     "communication_graph",
     "consensus_step_limit",
     "formation_step_limit",
+    "ring_adjacency",
     "settling_steps",
 ]
 
@@ -447,3 +448,33 @@ def _check_adjacency(adjacency: object) -> Adjacency:
             "adjacency", f"expected a crlbswarm.Adjacency, got {type(adjacency).__name__}"
         )
     return adjacency
+
+
+def ring_adjacency(n_uavs: int) -> Adjacency:
+    """The ring on ``n_uavs`` UAVs as CSR adjacency, built directly (UAV m's neighbours
+    m - 1 and m + 1 modulo M, in increasing order): the same arrays as
+    ``Adjacency.from_graph(communication_graph("ring", n_uavs))`` without importing
+    networkx and SciPy's sparse matrices (the scenario of the paper flies a ring).
+
+    Parameters
+    ----------
+    n_uavs : int
+        Number of UAVs M >= 2.
+
+    Returns
+    -------
+    Adjacency
+        The CSR adjacency.
+    """
+    n = _v.count(n_uavs, "n_uavs", 2, _v.MAX_UAVS)
+    m = np.arange(n, dtype=np.int64)
+    if n == 2:
+        indices = np.array([1, 0], dtype=np.int64)
+        indptr = np.array([0, 1, 2], dtype=np.int64)
+    else:
+        pair = np.stack([(m - 1) % n, (m + 1) % n], axis=1)
+        indices = np.sort(pair, axis=1).reshape(-1)
+        indptr = 2 * np.arange(n + 1, dtype=np.int64)
+    indptr.flags.writeable = False
+    indices.flags.writeable = False
+    return Adjacency(indptr, indices)

@@ -8,23 +8,33 @@ smallest separation from :mod:`crlbswarm.spatial`, the range model from
 formation-wide quantities: the scaling factor :math:`\eta_k`, global in the paper too, and
 the formation centroid that the leader uses to steer the formation off obstacles):
 
-0. :func:`sense_target`: with sensing in the loop, every ``measure_every`` steps the UAVs
+0. :func:`step_state`: the state of step :math:`k`, its centroid and its FIM (eq. (9)) at
+   the true target; :func:`sense_target`: with sensing in the loop, every ``measure_every`` steps the UAVs
    measure their ranges (eq. (2)) and the iterated EKF fuses them; the formation's goal is
    then the estimate instead of the true target (not in the paper);
-1. the leader computes its reference velocity :math:`\mathbf v^*_k` toward its slot of
-   :math:`F^*` over the target (:func:`crlbswarm.control.reference_velocity`), with the
-   target's (estimated) velocity as feedforward;
-2. :func:`control_step`: each UAV computes its formation input and obstacle repulsion,
-   eqs. (18)-(19), and moves by the motion model of eq. (3); the cost of eq. (15) is
-   recorded; the followers update their velocity estimates by the corrected consensus,
-   eq. (14); :math:`\eta` steps toward the free-width rule at a limited rate;
+1. :func:`leader_step`: the leader computes its reference velocity :math:`\mathbf v^*_k`
+   toward its slot of :math:`F^*` over the target
+   (:func:`crlbswarm.control.reference_velocity`), with the target's (estimated) velocity
+   as feedforward;
+2. :func:`input_block`: each UAV's obstacle clearance and repulsion (one pass, eq. (18))
+   and formation input (eq. (19)); :func:`step_motion`: each UAV moves by the motion model
+   of eq. (3) (through :func:`safe_displacement`, the safety filter, when it is on), the
+   cost of eq. (15) is recorded, the followers update their velocity estimates by the
+   corrected consensus, eq. (14); :func:`next_eta`: :math:`\eta` steps toward the
+   free-width rule at a limited rate;
 3. the filter predicts the target state with its motion model.
 
-The driver, :func:`crlbswarm.simulate`, prepares the arrays and calls :func:`run_batch`,
-which runs the runs of a batch in parallel threads; each run uses only its own inputs, so
-run :math:`b` is bit-identical to the single run with the same seed.
+The per-UAV work is done in blocks of :data:`UAV_BLOCK` UAVs (:func:`state_block`,
+:func:`input_block`, :func:`motion_block`, :func:`update_block`), on all threads for one
+large swarm. The driver, :func:`crlbswarm.simulate`, prepares the inputs and calls
+:func:`run_mission` for one run or :func:`run_batch`, which runs the runs of a batch in
+parallel threads; each run uses only its own inputs and draws (counter-based,
+:mod:`crlbswarm.counter_rng`), so run :math:`b` is bit-identical to the single run with the
+same seed.
 
-Adding a control law: call it in :func:`control_step`; its gains come with the
+Adding a control law: call it in the block where its inputs are ready
+(:func:`input_block` for a law on the positions of step :math:`k`, :func:`update_block`
+for one on the next positions); its gains come with the
 :class:`~crlbswarm.control.ControlGains` tuple.
 """
 

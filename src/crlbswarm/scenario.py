@@ -43,7 +43,7 @@ from .control import ControlGains, EtaRule
 from .design import crlb_bound, optimal_formation
 from .errors import FieldError, ScenarioError
 from .fisher import crlb
-from .graphs import GRAPH_KINDS, Adjacency, communication_graph
+from .graphs import GRAPH_KINDS, Adjacency, communication_graph, ring_adjacency
 from .multitarget import TargetAllocation, allocate_targets
 from .obstacles import Obstacles, obstacle_clearance
 from .planning import (
@@ -489,6 +489,8 @@ class Scenario(ConfigModel):
     def adjacency(self) -> Adjacency:
         """The communication graph as CSR adjacency."""
         spec = self.graph
+        if spec.kind == "ring":  # (the paper's graph: built without networkx)
+            return ring_adjacency(self.uavs.count)
         graph = communication_graph(
             spec.kind,
             self.uavs.count,
