@@ -9,9 +9,10 @@ formation-wide quantities: the scaling factor :math:`\eta_k`, global in the pape
 the formation centroid that the leader uses to steer the formation off obstacles):
 
 0. :func:`step_state`: the state of step :math:`k`, its centroid and its FIM (eq. (9)) at
-   the true target; :func:`sense_target`: with sensing in the loop, every ``measure_every`` steps the UAVs
-   measure their ranges (eq. (2)) and the iterated EKF fuses them; the formation's goal is
-   then the estimate instead of the true target (not in the paper);
+   the true target; :func:`sense_target`: with sensing in the loop, every
+   ``measure_every`` steps the UAVs measure their ranges (eq. (2)) and the iterated EKF
+   fuses them; the formation's goal is then the estimate instead of the true target (not
+   in the paper);
 1. :func:`leader_step`: the leader computes its reference velocity :math:`\mathbf v^*_k`
    toward its slot of :math:`F^*` over the target
    (:func:`crlbswarm.control.reference_velocity`), with the target's (estimated) velocity
