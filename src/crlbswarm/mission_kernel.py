@@ -86,9 +86,9 @@ __all__ = [
     "RunOutputs",
     "SceneArrays",
     "block_minimum",
+    "block_sum",
     "carrot_point",
     "input_block",
-    "keep_row",
     "leader_goal",
     "leader_step",
     "motion_block",
@@ -177,9 +177,6 @@ class MissionConstants(NamedTuple):
         The same, y, m.
     sigma : float
         Standard deviation of the motion disturbance per axis and step, m.
-    stride : int
-        The trajectories are kept every this many steps (and at the last step); 0: not
-        kept (:func:`crlbswarm.results.kept_rows`).
     """
 
     dt: float
@@ -203,7 +200,6 @@ class MissionConstants(NamedTuple):
     centre_x: float
     centre_y: float
     sigma: float
-    stride: int
 
 
 class SceneArrays(NamedTuple):
@@ -233,6 +229,9 @@ class SceneArrays(NamedTuple):
         The next node toward the goal (-1 for the goal).
     snr : ndarray, shape (M,)
         Each UAV's :math:`A_m` of the radar (the FIM of eq. (9)).
+    keep : ndarray of int64, shape (K+1,)
+        The row of each step in the kept trajectories, -1 for a step not kept (from
+        :func:`crlbswarm.results.kept_rows`).
     """
 
     indptr: np.ndarray
@@ -246,6 +245,7 @@ class SceneArrays(NamedTuple):
     node_dist: np.ndarray
     next_node: np.ndarray
     snr: np.ndarray
+    keep: np.ndarray
 
 
 class RunInputs(NamedTuple):
@@ -331,7 +331,7 @@ class RunOutputs(NamedTuple):
 @leaf
 def keep_state(row, q, v, out_q, out_v):
     """Copy the positions and velocities into row ``row`` of the kept trajectories (none if
-    ``row`` is negative, :func:`keep_row`)."""
+    ``row`` is negative: ``SceneArrays.keep``)."""
     if row < 0:
         return
     for m in range(q.shape[0]):
@@ -339,18 +339,6 @@ def keep_state(row, q, v, out_q, out_v):
         out_q[row, m, 1] = q[m, 1]
         out_v[row, m, 0] = v[m, 0]
         out_v[row, m, 1] = v[m, 1]
-
-
-@njit(cache=True, inline="always")
-def keep_row(k, k_steps, stride):
-    """Row of step ``k`` in the kept trajectories (:func:`crlbswarm.results.kept_rows`), or -1."""
-    if stride <= 0:
-        return -1
-    if k % stride == 0:
-        return k // stride
-    if k == k_steps:
-        return k // stride + 1
-    return -1
 
 
 @njit(cache=True)
@@ -650,6 +638,15 @@ def separation_of(q, wide, crowd):
 
 
 @leaf
+def block_sum(part, column):
+    """The sum of ``part[:, column]`` in block order (the same bits whatever the threads)."""
+    total = 0.0
+    for b in range(part.shape[0]):
+        total += part[b, column]
+    return total
+
+
+@leaf
 def block_minimum(part, column):
     """The smallest value of ``part[:, column]`` (over the blocks)."""
     best = math.inf
@@ -672,15 +669,11 @@ def step_state(k, q, q_next, v, v_next, tx, ty, altitude, snr, part, out_centroi
             lo = b * UAV_BLOCK
             state_block(b, lo, min(lo + UAV_BLOCK, m_uavs), k > 0, q, q_next, v, v_next, tx,
                         ty, altitude, snr, part)  # fmt: skip
-    sums = np.zeros(5)
-    for b in range(n_blocks):
-        for i in range(5):
-            sums[i] += part[b, i]
-    out_fim[k, 0] = sums[2]
-    out_fim[k, 1] = sums[3]
-    out_fim[k, 2] = sums[4]
-    out_centroid[k, 0] = sums[0] / m_uavs
-    out_centroid[k, 1] = sums[1] / m_uavs
+    out_fim[k, 0] = block_sum(part, 2)
+    out_fim[k, 1] = block_sum(part, 3)
+    out_fim[k, 2] = block_sum(part, 4)
+    out_centroid[k, 0] = block_sum(part, 0) / m_uavs
+    out_centroid[k, 1] = block_sum(part, 1) / m_uavs
     return out_centroid[k, 0], out_centroid[k, 1]
 
 
@@ -743,9 +736,8 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     made in it but one per block: each costs atomic reference counts."""
     k_steps = inp.target.shape[0] - 1
     m_uavs = inp.start.shape[0]
-    stride = const.stride
     rects, circles, indptr, indices = scene.rects, scene.circles, scene.indptr, scene.indices
-    snr = scene.snr
+    snr, keep = scene.snr, scene.keep
     keys, ids, delta = inp.keys, inp.ids, inp.delta
     target, target_velocity = inp.target, inp.target_velocity
     out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
@@ -792,7 +784,7 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
         eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
                                 circles, delta, scene, index, ctl, rule, const, out,
                                 route)  # fmt: skip
-        keep_state(keep_row(k, k_steps, stride), q, v, out_q, out_v)
+        keep_state(keep[k], q, v, out_q, out_v)
         # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
         # and the formation input of eq. (19).
         if wide is not None:

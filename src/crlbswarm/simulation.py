@@ -82,10 +82,17 @@ WIDE_UAVS = 2048
 _ON = np.empty(0)
 
 
-def _streams(seed: int, count: int) -> list[np.random.Generator]:
-    """The run's independent streams: start, disturbance, ranges, target motion (in that
-    order; spawning more children leaves the first ones unchanged)."""
-    return [np.random.default_rng(ss) for ss in np.random.SeedSequence(seed).spawn(count)]
+#: The children of ``SeedSequence(seed).spawn(4)`` that the driver draws from: the start
+#: positions and the target's acceleration noise (children 1 and 2, the disturbance and the
+#: range noise of earlier versions, are now counter-based draws inside the kernel).
+_START_STREAM, _TARGET_STREAM = 0, 3
+
+
+def _streams(seed: int, *children: int) -> list[np.random.Generator]:
+    """The NumPy streams ``children`` of the seed (``SeedSequence(seed).spawn(4)``; a
+    child depends only on its index), only those asked for."""
+    spawned = np.random.SeedSequence(seed).spawn(4)
+    return [np.random.default_rng(spawned[c]) for c in children]
 
 
 #: Draws per UAV before the start region is declared too crowded (the scenario checks leave
@@ -131,7 +138,7 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
     ndarray, shape (M, 2)
         Start positions, m.
     """
-    return _start(scenario, _streams(_v.seed(seed, "seed"), 1)[0])
+    return _start(scenario, _streams(_v.seed(seed, "seed"), _START_STREAM)[0])
 
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_steps: int,
@@ -245,6 +252,14 @@ def _crowd(sc: Scenario) -> np.ndarray | None:
     return _ON if sc.uavs.count > SEPARATION_BRUTE_FORCE_MAX else None
 
 
+def _keep_rows(k_steps: int, stride: int) -> np.ndarray:
+    """Each step's row in the kept trajectories, -1 if not kept (``SceneArrays.keep``)."""
+    keep = np.full(k_steps + 1, -1, dtype=np.int64)
+    rows = kept_rows(k_steps, stride)
+    keep[rows] = np.arange(rows.size)
+    return keep
+
+
 def _kernel_arguments(sc: Scenario, stride: int = 1
                       ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
     """The compiled mission's shared arrays, obstacle grid, gains, eta rule and constants for
@@ -270,6 +285,7 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         nodes=nodes,
         node_dist=node_dist,
         next_node=next_node,
+        keep=_keep_rows(sc.time.steps, stride),
         snr=np.ascontiguousarray(
             np.broadcast_to(np.asarray(sc.radar_model.snr_constant, dtype=float), (sc.uavs.count,))
         ),
@@ -298,7 +314,6 @@ def _kernel_arguments(sc: Scenario, stride: int = 1
         centre_x=float(sc.formation_design.centre_offset[0]),
         centre_y=float(sc.formation_design.centre_offset[1]),
         sigma=float(sc.disturbance.sigma),
-        stride=stride,
     )
     index = obstacle_index(
         sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
@@ -362,7 +377,7 @@ def run_keys(seed: int) -> np.ndarray:
 def _draw_run(sc: Scenario, seed: int, keys: np.ndarray) -> tuple[np.ndarray, np.random.Generator]:
     """One run's random inputs: the start (returned), the keys of the kernel's draws (into
     ``keys``), and the stream of the target's motion (returned)."""
-    start_rng, _, _, motion_rng = _streams(seed, 4)
+    start_rng, motion_rng = _streams(seed, _START_STREAM, _TARGET_STREAM)
     keys[:] = run_keys(seed)
     return _start(sc, start_rng), motion_rng
 
