@@ -7,6 +7,7 @@ new path with an independent or a plain one, bit for bit where the arithmetic is
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numba
@@ -141,6 +142,33 @@ def test_crlb_in_the_kernel_is_the_crlb_of_the_positions():
         ref = cs.crlb(r.positions, r.target, sc.altitude, sc.radar_model)
         np.testing.assert_allclose(r.crlb, ref, rtol=1e-12)
         np.testing.assert_allclose(r.centroid, r.positions.mean(axis=-2), rtol=0, atol=1e-12)
+        # The centroid error, also computed in the kernel: against the positions' mean ...
+        offset = r.positions.mean(axis=-2) - r.target - sc.formation_design.centre_offset
+        np.testing.assert_allclose(r.centroid_error, np.hypot(*np.moveaxis(offset, -1, 0)),
+                                   rtol=0, atol=1e-9)  # fmt: skip
+        # ... and the same bits as the result's own formula from its centroid (the fallback
+        # for results saved without it)
+        rebuilt = dataclasses.replace(r, centroid_error=None)
+        assert np.array_equal(rebuilt.centroid_error, r.centroid_error)
+
+
+def test_results_saved_without_the_centroid_error_load(tmp_path):
+    """A folder written before the kernel computed the centroid error loads, the error
+    computed from the centroid; a wrong shape is refused naming the array."""
+    r = cs.simulate(cs.load_scenario("paper"), seeds=[3, 4], keep_trajectories=False)
+    r.save(tmp_path / "new")
+    npz = tmp_path / "new" / "trajectories.npz"
+    with np.load(npz) as data:
+        arrays = dict(data)
+    old = arrays.pop("centroid_error")
+    np.testing.assert_array_equal(old, r.centroid_error)
+    np.savez(npz, **arrays)
+    back = cs.load_results(tmp_path / "new")
+    np.testing.assert_array_equal(back.centroid_error, r.centroid_error)
+    assert back.metrics["final_centroid_error_m"].tolist() == r.centroid_error[:, -1].tolist()
+    np.savez(npz, **arrays, centroid_error=old[:, :-1])
+    with pytest.raises(FieldError, match="'centroid_error' is shape"):
+        cs.load_results(tmp_path / "new")
 
 
 # ---------------------------------------------------------------------------------------

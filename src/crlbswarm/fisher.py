@@ -34,6 +34,8 @@ dominated by rounding error and no finite value would be meaningful.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
@@ -46,7 +48,6 @@ from .radar import Radar, check_radar
 
 __all__ = [
     "crlb",
-    "crlb_from_entries",
     "crlb_from_fim",
     "d_optimality",
     "d_optimality_from_fim",
@@ -54,6 +55,7 @@ __all__ = [
     "e_optimality_from_fim",
     "fim_entries_at",
     "fisher_information",
+    "inverse_figures_at",
     "range_information",
 ]
 
@@ -202,41 +204,51 @@ def fisher_information(
     return np.stack([np.stack([jxx, jxy], axis=-1), np.stack([jxy, jyy], axis=-1)], axis=-2)
 
 
-def _inverse_figures(
-    jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(trace, det, lambda_max, singular)`` of a batch of symmetric 2x2 matrices."""
+@leaf
+def inverse_figures_at(jxx, jyy, jxy):
+    r"""The A-, D- and E-optimality figures of one symmetric 2x2 FIM:
+    :math:`(\operatorname{tr}\mathbf J^{-1}, \det\mathbf J^{-1},
+    \lambda_{\max}(\mathbf J^{-1}))` (eq. (10) and its D/E companions), each ``+inf``
+    when the matrix is singular (module docstring). Compiled kernel, no checks: the one
+    writing of the criteria, called by :func:`crlb` and its companions (through a compiled
+    loop) and by the mission kernel at every step.
+
+    The singularity test is made on the trace-normalised matrix,
+    :math:`\det\mathbf J / (\operatorname{tr}\mathbf J)^2`, so that it neither underflows
+    nor overflows for FIMs of extreme magnitude. The quotients may overflow to ``+inf``:
+    the right answer. :math:`\lambda_{\max}(\mathbf J^{-1}) = \lambda_{\max}(\mathbf J)
+    / \det\mathbf J` (no cancellation)."""
     tr = jxx + jyy
     det = jxx * jyy - jxy * jxy
-    # The singularity test on the trace-normalised matrix, det(J)/tr(J)^2, so that it neither
-    # underflows nor overflows for FIMs of extreme magnitude.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(tr > 0, 1.0 / tr, 0.0)
-        nxx, nyy, nxy = jxx * scale, jyy * scale, jxy * scale
-        singular = ~(nxx * nyy - nxy * nxy > SINGULAR_RTOL) | ~(det > 0)
-    lam_max = 0.5 * tr + np.hypot(0.5 * (jxx - jyy), jxy)
-    return tr, np.where(singular, 1.0, det), lam_max, singular
+    scale = 1.0 / tr if tr > 0.0 else 0.0
+    nxx, nyy, nxy = jxx * scale, jyy * scale, jxy * scale
+    if not nxx * nyy - nxy * nxy > SINGULAR_RTOL or not det > 0.0:
+        return math.inf, math.inf, math.inf
+    lam_max = 0.5 * tr + math.hypot(0.5 * (jxx - jyy), jxy)
+    return tr / det, 1.0 / det, lam_max / det
 
 
-# The quotients below may overflow to +inf for matrices of extreme magnitude: that is the
-# right answer, so the overflow warning is silenced.
-def _a_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
-    tr, det, _, singular = _inverse_figures(jxx, jyy, jxy)
-    with np.errstate(over="ignore"):
-        return np.where(singular, np.inf, tr / det)
+@njit(cache=True)
+def _criteria_batch(jxx, jyy, jxy, which, out):
+    for i in range(out.shape[0]):
+        out[i] = inverse_figures_at(jxx[i], jyy[i], jxy[i])[which]
 
 
-def _d_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
-    _, det, _, singular = _inverse_figures(jxx, jyy, jxy)
-    with np.errstate(over="ignore"):
-        return np.where(singular, np.inf, 1.0 / det)
+#: The position of each criterion in the figures of :func:`inverse_figures_at`.
+_A, _D, _E = 0, 1, 2
 
 
-def _e_criterion(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
-    # lambda_max(J^-1) = 1 / lambda_min(J) = lambda_max(J) / det(J): no cancellation.
-    _, det, lam_max, singular = _inverse_figures(jxx, jyy, jxy)
-    with np.errstate(over="ignore"):
-        return np.where(singular, np.inf, lam_max / det)
+def _criterion(which: int, jxx: ArrayLike, jyy: ArrayLike, jxy: ArrayLike) -> np.ndarray:
+    """Criterion ``which`` (:data:`_A`, :data:`_D` or :data:`_E`) of a batch of FIMs given by
+    their entries (broadcast together): :func:`inverse_figures_at` on each."""
+    shape = np.broadcast_shapes(np.shape(jxx), np.shape(jyy), np.shape(jxy))
+    flat = [
+        np.ascontiguousarray(np.broadcast_to(np.asarray(j, dtype=np.float64), shape)).reshape(-1)
+        for j in (jxx, jyy, jxy)
+    ]
+    out = np.empty(flat[0].shape[0])
+    _criteria_batch(flat[0], flat[1], flat[2], which, out)
+    return out.reshape(shape)
 
 
 def _fim_parts(fim: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -283,7 +295,7 @@ def crlb_from_fim(fim: ArrayLike) -> np.ndarray:
         If ``fim`` is not symmetric positive semi-definite, not finite, or outside the
         model's range (entries up to ``MAX_FIM``, trace 0 or at least ``MIN_FIM``).
     """
-    return _a_criterion(*_fim_parts(fim))
+    return _criterion(_A, *_fim_parts(fim))
 
 
 def d_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
@@ -299,7 +311,7 @@ def d_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
     ndarray, shape (...)
         The determinant of the inverse; ``+inf`` where the matrix is singular.
     """
-    return _d_criterion(*_fim_parts(fim))
+    return _criterion(_D, *_fim_parts(fim))
 
 
 def e_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
@@ -315,7 +327,7 @@ def e_optimality_from_fim(fim: ArrayLike) -> np.ndarray:
     ndarray, shape (...)
         The largest eigenvalue of the inverse; ``+inf`` where the matrix is singular.
     """
-    return _e_criterion(*_fim_parts(fim))
+    return _criterion(_E, *_fim_parts(fim))
 
 
 def crlb(
@@ -357,29 +369,7 @@ def crlb(
     >>> round(float(crlb(f, (80.0, 90.0), 20.0)) * 1e3, 4)
     5.3476
     """
-    return _a_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
-
-
-def crlb_from_entries(jxx: np.ndarray, jyy: np.ndarray, jxy: np.ndarray) -> np.ndarray:
-    r"""CRLB, eq. (10), from the entries of FIMs, without checks (the mission driver's path
-    from the FIMs its kernel computes, :func:`fim_entries_at`).
-
-    Parameters
-    ----------
-    jxx : ndarray
-        :math:`J_{xx}` of symmetric positive semi-definite FIMs, m^-2.
-    jyy : ndarray
-        :math:`J_{yy}`, of the same shape.
-    jxy : ndarray
-        :math:`J_{xy}`, of the same shape.
-
-    Returns
-    -------
-    ndarray
-        :math:`\operatorname{tr}\mathbf J_s^{-1}`, m^2 (``+inf`` when singular, as
-        :func:`crlb`).
-    """
-    return _a_criterion(jxx, jyy, jxy)
+    return _criterion(_A, *_fim_entries(uav_xy, target_xy, altitude, radar))
 
 
 def d_optimality(
@@ -411,7 +401,7 @@ def d_optimality(
     FieldError
         As :func:`fisher_information`.
     """
-    return _d_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
+    return _criterion(_D, *_fim_entries(uav_xy, target_xy, altitude, radar))
 
 
 def e_optimality(
@@ -443,4 +433,4 @@ def e_optimality(
     FieldError
         As :func:`fisher_information`.
     """
-    return _e_criterion(*_fim_entries(uav_xy, target_xy, altitude, radar))
+    return _criterion(_E, *_fim_entries(uav_xy, target_xy, altitude, radar))

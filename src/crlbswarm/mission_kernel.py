@@ -66,7 +66,7 @@ from .control import (
 )
 from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
-from .fisher import fim_entries_at
+from .fisher import fim_entries_at, inverse_figures_at
 from .obstacles import field_of
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
@@ -312,6 +312,11 @@ class RunOutputs(NamedTuple):
         Centroid of the UAVs, m.
     fim : ndarray, shape (K+1, 3)
         FIM of the target position at the true target, eq. (9): ``J_xx, J_yy, J_xy``.
+    crlb : ndarray, shape (K+1,)
+        CRLB of that FIM, eq. (10), m^2 (:func:`crlbswarm.fisher.inverse_figures_at`).
+    centroid_error : ndarray, shape (K+1,)
+        Distance from the centroid to the formation's centre over the true target, m
+        (:attr:`crlbswarm.MissionResult.centroid_error`).
     """
 
     q: np.ndarray
@@ -326,6 +331,8 @@ class RunOutputs(NamedTuple):
     distance_to_go: np.ndarray
     centroid: np.ndarray
     fim: np.ndarray
+    crlb: np.ndarray
+    centroid_error: np.ndarray
 
 
 @leaf
@@ -656,10 +663,14 @@ def block_minimum(part, column):
 
 
 @njit(cache=True, inline="always")
-def step_state(k, q, q_next, v, v_next, tx, ty, altitude, snr, part, out_centroid, out_fim, wide):
+def step_state(k, q, q_next, v, v_next, tx, ty, snr, part, const, out_centroid, out_fim,
+               out_crlb, out_centroid_error, wide):  # fmt: skip
     """:func:`state_block` on every block (on all threads with ``wide``), then the blocks'
     sums in block order: the centroid (written to ``out_centroid[k]`` and returned) and the
-    FIM (``out_fim[k]``)."""
+    FIM (``out_fim[k]``); then the step's metrics: the CRLB of eq. (10) (``out_crlb[k]``)
+    and the centroid's distance to the formation's centre over the true target
+    (``out_centroid_error[k]``)."""
+    altitude = const.altitude
     m_uavs = q.shape[0]
     n_blocks = part.shape[0]
     if wide is not None:
@@ -672,9 +683,11 @@ def step_state(k, q, q_next, v, v_next, tx, ty, altitude, snr, part, out_centroi
     out_fim[k, 0] = block_sum(part, 2)
     out_fim[k, 1] = block_sum(part, 3)
     out_fim[k, 2] = block_sum(part, 4)
-    out_centroid[k, 0] = block_sum(part, 0) / m_uavs
-    out_centroid[k, 1] = block_sum(part, 1) / m_uavs
-    return out_centroid[k, 0], out_centroid[k, 1]
+    cx = out_centroid[k, 0] = block_sum(part, 0) / m_uavs
+    cy = out_centroid[k, 1] = block_sum(part, 1) / m_uavs
+    out_crlb[k] = inverse_figures_at(out_fim[k, 0], out_fim[k, 1], out_fim[k, 2])[0]
+    out_centroid_error[k] = math.hypot(cx - tx - const.centre_x, cy - ty - const.centre_y)
+    return cx, cy
 
 
 @njit(cache=True, inline="always")
@@ -742,6 +755,7 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     target, target_velocity = inp.target, inp.target_velocity
     out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
     out_centroid, out_clear, out_sep = out.centroid, out.clearance, out.separation
+    out_crlb, out_centroid_error = out.crlb, out.centroid_error
     q, v = inp.start.copy(), np.zeros((m_uavs, 2))
     q_next, v_next, u = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty((m_uavs, 2))
     rep, d_work, clear = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty(m_uavs)
@@ -757,13 +771,12 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     p_cov = scene.p0.copy()
     f_work = filter_work()
     moving = x.shape[0] == 4
-    h = const.altitude
     for k in range(k_steps + 1):
         eta = out_eta[k]
-        # The state of step k, the centroid and the FIM at the true target (eq. (9)).
+        # The state of step k, the centroid, the FIM at the true target (eq. (9)), the CRLB.
         tx, ty = target[k, 0], target[k, 1]
-        cx, cy = step_state(k, q, q_next, v, v_next, tx, ty, h, snr, part, out_centroid,
-                            out_fim, wide)  # fmt: skip
+        cx, cy = step_state(k, q, q_next, v, v_next, tx, ty, snr, part, const, out_centroid,
+                            out_fim, out_crlb, out_centroid_error, wide)  # fmt: skip
         # The formation's goal: the UAVs' own estimate of the target, or the truth.
         if track is not None:
             if k % const.measure_every == 0:
@@ -824,6 +837,7 @@ def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, t
         out = RunOutputs(
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
             outs[6][b], outs[7][b], outs[8][b], outs[9][b], outs[10][b], outs[11][b],
+            outs[12][b], outs[13][b],
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip

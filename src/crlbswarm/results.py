@@ -111,6 +111,13 @@ class MissionResult:
     trajectory_stride : int, default 1
         ``positions`` and ``velocities`` hold every this many steps, and the last
         (:attr:`trajectory_steps`; ``simulate(..., trajectory_stride=...)``).
+    centroid_error : ndarray, shape (B, K+1)
+        Distance from the formation centroid to its place over the (true) target, m: the
+        target itself for a regular polygon, else the target plus the formation's centre
+        offset (``centre_offset`` of :class:`crlbswarm.scenario.FormationDesign`). The
+        simulator's kernel computes it at every step; when it is not given (``None``, e.g.
+        a result saved by an older build) it is computed from ``centroid`` and ``target``,
+        with the same bits.
     """
 
     scenario: Scenario
@@ -132,9 +139,13 @@ class MissionResult:
     distance_to_go: np.ndarray
     bound: float
     trajectory_stride: int = 1
+    centroid_error: np.ndarray = None  # type: ignore[assignment]  # None: computed
     metrics: dict[str, np.ndarray] = field(init=False)
 
     def __post_init__(self) -> None:
+        if self.centroid_error is None:
+            offset = self.centroid - self.target - self.scenario.formation_design.centre_offset
+            object.__setattr__(self, "centroid_error", np.hypot(offset[..., 0], offset[..., 1]))
         object.__setattr__(self, "metrics", self._metrics())
 
     @property
@@ -147,15 +158,6 @@ class MissionResult:
     def n_runs(self) -> int:
         """Number of runs B."""
         return int(self.seeds.shape[0])
-
-    @property
-    def centroid_error(self) -> np.ndarray:
-        """Distance from the formation centroid to its place over the (true) target, m,
-        shape (B, K+1): the target itself for a regular polygon, else the target plus the
-        formation's centre offset (``centre_offset`` of
-        :class:`crlbswarm.scenario.FormationDesign`)."""
-        offset = self.centroid - self.target - self.scenario.formation_design.centre_offset
-        return np.hypot(offset[..., 0], offset[..., 1])
 
     @property
     def estimation_error(self) -> np.ndarray | None:
@@ -721,6 +723,8 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
         shapes.update(positions=(b, rows, m, 2), velocities=(b, rows, m, 2))
     if scenario.estimation.enabled:
         shapes.update(estimate=(b, k1, 2), estimate_variance=(b, k1), pcrb=(k1,))
+    if arrays["centroid_error"] is not None:  # (absent from results of older builds)
+        shapes.update(centroid_error=(b, k1))
     for name, shape in shapes.items():
         value = arrays[name]
         if value is None or value.shape != shape:

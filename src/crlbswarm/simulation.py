@@ -27,7 +27,7 @@ import numpy as np
 from . import _validation as _v
 from .counter_rng import DISTURBANCE, RANGE_NOISE, stream_key
 from .errors import FieldError, SimulationDivergedError
-from .fisher import crlb, crlb_from_entries
+from .fisher import crlb
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
     REPLAN_PERIOD,
@@ -333,6 +333,7 @@ class _Batch:
         self.eta, self.crlb, self.clearance, self.separation, self.distance_to_go = (
             np.empty((n_runs, k1)) for _ in range(5)
         )
+        self.centroid_error = np.empty((n_runs, k1))
         self.cost = np.empty((n_runs, k1 - 1))
         est = sc.estimation.enabled
         self.estimate = np.full((n_runs, k1, 2), np.nan) if est else None
@@ -441,6 +442,7 @@ def _run_chunk(
         batch.positions[lo:hi], batch.velocities[lo:hi], batch.vref[lo:hi], batch.eta[lo:hi],
         batch.clearance[lo:hi], batch.separation[lo:hi], batch.cost[lo:hi], buf.estimate[:n],
         buf.estimate_variance[:n], batch.distance_to_go[lo:hi], batch.centroid[lo:hi], fim,
+        batch.crlb[lo:hi], batch.centroid_error[lo:hi],
     )  # fmt: skip
     inps = RunInputs(
         buf.start[:n], buf.keys[:n], batch.target[lo:hi], np.ascontiguousarray(truth[..., 2:]),
@@ -459,7 +461,6 @@ def _run_chunk(
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
-    batch.crlb[lo:hi] = crlb_from_entries(fim[..., 0], fim[..., 1], fim[..., 2])
     if batch.estimate is not None and batch.estimate_variance is not None:  # estimation on
         batch.estimate[lo:hi] = buf.estimate[:n]
         batch.estimate_variance[lo:hi] = buf.estimate_variance[:n]
@@ -570,6 +571,7 @@ def simulate(
         distance_to_go=batch.distance_to_go,
         bound=sc.formation_design.bound,
         trajectory_stride=stride,
+        centroid_error=batch.centroid_error,
     )
 
 
