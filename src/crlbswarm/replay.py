@@ -416,7 +416,7 @@ def _group_data(
         "targetMoving": moving,
         "target": float32_base64(target),
         "estimate": None if estimate is None else float32_base64(estimate),
-        "positions": float32_base64(group.positions[runs][:, rows]),
+        "positions": float32_base64(group.positions[np.asarray(runs)[:, None], rows]),
         "series": {name: float32_base64(v) for name, v in series.items()},
         "envelope": envelope,
         "metrics": {name: _finite(group.metrics[name][runs]) for name in RUN_METRICS},
