@@ -119,6 +119,10 @@ from .radar import (
     db_to_linear as db_to_linear,
     dbm_to_watts as dbm_to_watts,
 )
+from .replay import (
+    replay_html as replay_html,
+    write_replay as write_replay,
+)
 from .results import (
     GroupMissionResult as GroupMissionResult,
     MissionResult as MissionResult,

@@ -144,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario(sub)
     _add_simulate(sub)
     _add_sweep(sub)
+    _add_replay(sub)
     return parser
 
 
@@ -888,6 +889,75 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         f"{counts['tasks']} tasks over {counts['variants']} variants: ran {counts['ran']}, "
         f"skipped {counts['skipped']} already finished; results in {args.out / 'runs'}"
     )
+    return 0
+
+
+# -- crlbswarm replay ------------------------------------------------------------------------
+def _add_replay(sub: Any) -> None:
+    replay, fields = _command(
+        sub,
+        "replay",
+        _cmd_replay,
+        help="write an interactive replay of a simulate folder (one offline HTML file)",
+        description="Write one self-contained HTML page (works offline: data and code "
+        "inline) replaying the missions of a `crlbswarm simulate` folder: obstacles, "
+        "tracks, formation, target and estimate on a map (wheel: zoom, drag: pan); play, "
+        "speed, a time slider, a run selector; time plots of the CRLB and its bound, cost, "
+        "eta, clearance and separation (docs/replay.md). A large batch gets fewer frames "
+        "per run so that the page stays under --max-mb.",
+    )
+    replay.add_argument("runs_dir", metavar="RUNS_DIR", type=_path,
+                        help="folder written by `crlbswarm simulate --out`")  # fmt: skip
+    fields["folder"] = fields["result"] = "RUNS_DIR"
+    _option(replay, fields, "-o", "--out", field="out", required=True, type=_path,
+            metavar="FILE", help="the HTML file to write (refused if it exists, unless "
+            "--force)")  # fmt: skip
+    fields["path"] = fields["out"]
+    replay.add_argument("--force", action="store_true", help="replace FILE if it exists")
+    _option(replay, fields, "--runs", field="runs", default=None, metavar="LIST",
+            help="runs to show, by index: comma-separated indices and ranges A:B (B not "
+            "included), e.g. 0:10,42 (default all)")  # fmt: skip
+    _option(replay, fields, "--max-frames", field="max_frames", type=int, default=None,
+            metavar="N", help="most frames per run (default 600)")  # fmt: skip
+    _option(replay, fields, "--max-mb", field="max_mb", type=float, default=None,
+            metavar="MB", help="most megabytes of data in the page; a large batch gets fewer "
+            "frames per run (default 10)")  # fmt: skip
+    _option(replay, fields, "--title", field="title", default=None,
+            help="title of the page (default: scenario name and number of runs)")  # fmt: skip
+
+
+def _run_list(text: str) -> list[int]:
+    """The run indices of ``--runs``: ``I``, ``A:B`` (B excluded), comma-separated."""
+    runs: list[int] = []
+    for item in text.split(","):
+        first, colon, last = item.strip().partition(":")
+        try:
+            if colon:
+                runs.extend(range(int(first), int(last)))
+            else:
+                runs.append(int(first))
+        except ValueError:
+            raise FieldError("runs", f"expected indices I or ranges A:B, got {item!r}") from None
+    return runs
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from .output import check_output_file
+    from .replay import MAX_FRAMES, MAX_MB, load_mission_folder, write_replay
+
+    runs = None if args.runs is None else _run_list(args.runs)
+    check_output_file(args.out, "out", overwrite=args.force)  # before reading anything
+    result = load_mission_folder(args.runs_dir)
+    path = write_replay(
+        result,
+        args.out,
+        overwrite=args.force,
+        runs=runs,
+        max_frames=MAX_FRAMES if args.max_frames is None else args.max_frames,
+        max_mb=MAX_MB if args.max_mb is None else args.max_mb,
+        title=args.title,
+    )
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0
 
 
