@@ -47,6 +47,7 @@ MODULES = [
     "crlbswarm.tracking",
     "crlbswarm.campaign",
     "crlbswarm.paper",
+    "crlbswarm.report",
 ]
 
 

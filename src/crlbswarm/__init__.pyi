@@ -119,6 +119,10 @@ from .radar import (
     db_to_linear as db_to_linear,
     dbm_to_watts as dbm_to_watts,
 )
+from .report import (
+    report_html as report_html,
+    write_report as write_report,
+)
 from .results import (
     GroupMissionResult as GroupMissionResult,
     MissionResult as MissionResult,
