@@ -35,11 +35,12 @@ import numpy as np
 from . import __version__, _validation as _v
 from .errors import FieldError, one_line
 from .output import check_output_file, write_text
-from .results import OUTCOMES
+from .results import CENTROID_TOL, CRLB_TOL, OUTCOMES, PROGRESS_TOL
 
 __all__ = [
     "DISTRIBUTIONS",
     "MAX_RUN_ROWS",
+    "OUTCOME_TEXT",
     "Distribution",
     "report_data",
     "report_html",
@@ -47,7 +48,8 @@ __all__ = [
 ]
 
 #: Most runs whose rows are embedded in the page (all variants together); above it the page
-#: has the per-variant summaries, box plots and histograms only (about 100 bytes per run).
+#: has the per-variant summaries, box plots and histograms only (a row takes about 80 bytes
+#: for the paper scenario).
 MAX_RUN_ROWS = 100_000
 
 
@@ -98,6 +100,15 @@ DISTRIBUTIONS = (
     Distribution("min_separation_m", "smallest separation between two UAVs", "separation",
                  "m", "min", "not finite", False, 4),
 )  # fmt: skip
+
+#: What the outcomes mean (``MissionResult.metrics["outcome"]``), for the page.
+OUTCOME_TEXT = (
+    "collision (a UAV inside an obstacle, or two UAVs closer than safety.min_separation, at "
+    f"any step), else converged (the CRLB within {100 * CRLB_TOL:g} % of the bound and the "
+    f"centroid within {CENTROID_TOL:g} m of its place, held until the end for at least "
+    f"time.hold), else timeout (the distance to go still fell by more than {PROGRESS_TOL:g} "
+    "m over the last time.stall seconds) or stuck (it did not)"
+)
 
 #: Bins of each histogram (the same edges for every variant).
 HIST_BINS = 20
@@ -243,20 +254,24 @@ def _variant_parts(folder: Path) -> dict[int, list[Path]]:
 
 
 def _variant_runs(files: list[Path], fields: list[str]) -> dict[str, np.ndarray]:
-    """The runs of one variant, by column: ``seed``, ``outcome`` and every metric (the
-    changed fields, which repeat the variant's values, left out); non-finite and null
+    """The runs of one variant, by column: ``seed``, ``outcome`` and every numeric metric
+    (the changed fields, which repeat the variant's values, left out); non-finite and null
     numbers are NaN, sorted by seed."""
+    import pyarrow as pa
+
     columns: dict[str, list[np.ndarray]] = {}
     for path in files:
         table = _read_parquet(path)
         for name in table.column_names:
-            if name in fields or name == "variant":
-                continue
             column = table.column(name)
             if name == "outcome":
                 array = np.asarray(column.to_pylist(), dtype=object)
             elif name == "seed":
                 array = np.asarray(column.to_numpy(zero_copy_only=False), dtype=np.int64)
+            elif name in fields or not (
+                pa.types.is_floating(column.type) or pa.types.is_integer(column.type)
+            ):  # a changed field (the variant's value again), or not a number
+                continue
             else:  # (a null becomes NaN)
                 array = np.asarray(column.to_numpy(zero_copy_only=False), dtype=float)
             columns.setdefault(name, []).append(array)
@@ -300,8 +315,8 @@ def _edges(values: list[np.ndarray], log: bool) -> tuple[np.ndarray, bool]:
     hi = max(float(v.max()) for v in finite)
     if log and lo > 0.0 and hi / lo > 30.0:  # from the decade below (an axis tick at lo)
         return np.geomspace(10.0 ** math.floor(math.log10(lo)), hi, HIST_BINS + 1), True
-    if hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
-        pad = 0.5 * max(abs(lo), 1.0) * 0.1
+    if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):  # one value: a bin around it
+        pad = 0.05 * max(abs(lo), 1.0)
         lo, hi = lo - pad, hi + pad
     return np.linspace(lo, hi, HIST_BINS + 1), False
 
@@ -316,26 +331,16 @@ def _metric_meta(name: str) -> dict[str, Any]:
     "min clearance", "m")."""
     for d in DISTRIBUTIONS:
         if d.key == name:
-            return {
-                "key": name,
-                "label": d.label,
-                "unit": d.unit,
-                "missing": d.missing,
-                "digits": d.digits,
-            }
+            return {"key": name, "label": d.label, "unit": d.unit, "missing": d.missing,
+                    "digits": d.digits}  # fmt: skip
     base, unit = name, ""
     for suffix, u in (("_m2", "m²"), ("_m", "m"), ("_s", "s")):
         if name.endswith(suffix):
             base, unit = name[: -len(suffix)], u
             break
     words = [{"crlb": "CRLB", "eta": "η", "rms": "RMS"}.get(w, w) for w in base.split("_")]
-    return {
-        "key": name,
-        "label": " ".join(words),
-        "unit": unit,
-        "missing": "not finite",
-        "digits": 4,
-    }
+    return {"key": name, "label": " ".join(words), "unit": unit, "missing": "not finite",
+            "digits": 4}  # fmt: skip
 
 
 # -- the page's data ---------------------------------------------------------------------------
@@ -354,7 +359,8 @@ def _run_rows(runs: dict[str, np.ndarray], outcomes: list[str]) -> dict[str, lis
     and each metric's values (compact; None where missing)."""
     index = {name: i for i, name in enumerate(outcomes)}
     return {
-        "seed": [int(s) for s in runs["seed"].tolist()],
+        # (a seed beyond 2**53 as text: JavaScript's numbers would round it)
+        "seed": [s if abs(s) < 2**53 else str(s) for s in runs["seed"].tolist()],
         "outcome": [index[str(o)] for o in runs["outcome"].tolist()],
         **{m: _compact(a) for m, a in runs.items() if m not in ("seed", "outcome")},
     }
@@ -408,7 +414,7 @@ def report_data(
         ``variants`` (per variant: ``id``, ``params``, ``runs``, ``expected`` runs,
         ``counts`` by outcome, ``stats`` and ``hist`` per distribution metric, and ``rows``,
         its runs by column, or None above ``max_run_rows``), ``total_runs``,
-        ``rows_included``, ``max_run_rows``.
+        ``rows_included``, ``max_run_rows``, ``outcome_text`` (:data:`OUTCOME_TEXT`).
 
     Raises
     ------
@@ -446,7 +452,7 @@ def report_data(
         "field_kinds": {f: _kind(values[f]) for f in fields}, "outcomes": outcomes,
         "distributions": distributions, "metrics": [_metric_meta(m) for m in metrics],
         "variants": variants, "total_runs": total, "rows_included": embed,
-        "max_run_rows": limit,
+        "max_run_rows": limit, "outcome_text": OUTCOME_TEXT,
     }  # fmt: skip
 
 

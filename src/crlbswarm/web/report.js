@@ -609,10 +609,8 @@
         "quartiles, extremes, box plots and histograms, which say how many runs have a value. " +
         "A statistic of a variant with no value at all is itself missing."),
       h("ul", {}, items),
-      h("p", {}, "Outcomes (crlbswarm.results): collision (a UAV inside an obstacle, or two " +
-        "UAVs closer than safety.min_separation, at any step), else converged (CRLB within 1 % " +
-        "of the bound and the centroid within 0.5 m, held to the end for time.hold), else " +
-        "timeout (still progressing at the end) or stuck (no progress over time.stall)."));
+      h("h2", {}, "Outcomes of a run"),
+      h("p", { id: "outcome-text" }, `The outcome of each run (crlbswarm.results): ${DATA.outcome_text}.`));
   }
 
   function build() {
