@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import math
 from pathlib import Path
 
@@ -63,8 +64,17 @@ DISTRIBUTION_KEYS = ("final_crlb_ratio", "convergence_time_s", "min_clearance_m"
 # -- the datasets ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def real_campaign(tmp_path_factory) -> Path:
+    """A real campaign: ``run_campaign`` on a Dask scheduler with one worker thread in this
+    process (started in a fraction of a second, unlike worker processes)."""
+    from distributed import LocalCluster
+
     folder = tmp_path_factory.mktemp("real") / "campaign"
-    run_campaign(CampaignSpec.from_toml(REAL_SPEC), folder, n_workers=1, spec_text=REAL_SPEC)
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
+        host="127.0.0.1", dashboard_address=None, silence_logs=logging.CRITICAL,
+    ) as cluster:  # fmt: skip
+        spec = CampaignSpec.from_toml(REAL_SPEC)
+        run_campaign(spec, folder, scheduler=cluster.scheduler_address, spec_text=REAL_SPEC)
     return folder
 
 
