@@ -48,6 +48,7 @@ MODULES = [
     "crlbswarm.campaign",
     "crlbswarm.paper",
     "crlbswarm.replay",
+    "crlbswarm.report",
 ]
 
 

@@ -123,6 +123,10 @@ from .replay import (
     replay_html as replay_html,
     write_replay as write_replay,
 )
+from .report import (
+    report_html as report_html,
+    write_report as write_report,
+)
 from .results import (
     GroupMissionResult as GroupMissionResult,
     MissionResult as MissionResult,

@@ -1,4 +1,4 @@
-"""Command-line interface: ``crlbswarm design | figures | scenario | simulate | sweep``.
+"""Command-line interface: ``crlbswarm design | figures | replay | report | scenario | simulate | sweep``.
 
 The CLI only parses, calls the library and prints. Errors the user can cause (bad numbers,
 impossible parameters, an unwritable output folder) are :class:`~crlbswarm.errors.FieldError`
@@ -145,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_sweep(sub)
     _add_replay(sub)
+    _add_report(sub)
     return parser
 
 
@@ -957,6 +958,41 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         max_mb=MAX_MB if args.max_mb is None else args.max_mb,
         title=args.title,
     )
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    return 0
+
+
+# -- crlbswarm report ------------------------------------------------------------------------
+def _add_report(sub: Any) -> None:
+    report, fields = _command(
+        sub,
+        "report",
+        _cmd_report,
+        help="write the HTML report of a campaign (outcomes, distributions, sortable tables)",
+        description="Write one self-contained HTML page (works offline: data, script and "
+        "style inline) from the Parquet dataset of a campaign written by crlbswarm sweep: "
+        "per variant, the outcome counts, the distributions of the final CRLB / bound, the "
+        "convergence time, the clearance and the separation, the sweep parameters, and "
+        "tables sortable by column (docs/report.md).",
+    )
+    _option(report, fields, "campaign_dir", field="campaign_dir", type=_path,
+            metavar="CAMPAIGN_DIR", help="the --out folder of crlbswarm sweep")  # fmt: skip
+    fields["campaign_dir"] = "CAMPAIGN_DIR"
+    _option(report, fields, "-o", "--out", field="out", required=True, type=_path,
+            metavar="FILE", help="the HTML file to write (its folder must exist; an existing "
+            "file is refused unless --force)")  # fmt: skip
+    report.add_argument("--force", action="store_true", help="replace FILE if it exists")
+    _option(report, fields, "--max-run-rows", field="max_run_rows", type=int,
+            default=None, metavar="N",
+            help="embed the per-run rows when the campaign has at most N runs (0: never; "
+            "default 100000)")  # fmt: skip
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report import MAX_RUN_ROWS, write_report
+
+    rows = MAX_RUN_ROWS if args.max_run_rows is None else args.max_run_rows
+    path = write_report(args.campaign_dir, args.out, overwrite=args.force, max_run_rows=rows)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0
 
