@@ -1,4 +1,5 @@
-"""Command-line interface: ``crlbswarm design | figures | replay | report | scenario | simulate | sweep``.
+"""Command-line interface: ``crlbswarm COMMAND`` (design, figures, replay, report, scenario,
+simulate, sweep).
 
 The CLI only parses, calls the library and prints. Errors the user can cause (bad numbers,
 impossible parameters, an unwritable output folder) are :class:`~crlbswarm.errors.FieldError`
