@@ -267,14 +267,12 @@ def _narrowest_passage(result: MissionResult, b: int) -> int | None:
     """The step at which the formation's centroid is in the narrowest passage between
     obstacles that is narrower than the full formation needs (its diameter plus twice the
     safety radius), the middle of the steps within 1 % of that width; None if there is
-    none (or no trajectories)."""
-    if result.positions is None:
-        return None
+    none."""
     sc = result.scenario
     slots = np.asarray(sc.slots, dtype=float)
     radius = float(np.max(np.hypot(*(slots - slots.mean(axis=0)).T)))
     reach = 2.0 * (radius + sc.control.safety_radius)
-    width = _passage_widths(result.positions[b].mean(axis=1), sc.obstacle_set, reach)
+    width = _passage_widths(result.centroid[b], sc.obstacle_set, reach)
     if not np.any(width < reach):
         return None
     narrow = np.flatnonzero(width <= 1.01 * width.min())
@@ -446,6 +444,8 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
         Axes to draw on; a new figure, sized to the scene, is made if omitted.
     steps : list of int, optional
         Steps at which to draw the formation; by default :func:`mission_snapshot_steps`.
+        Where positions were kept every few steps only (``trajectory_stride``), each is
+        drawn at the nearest kept step.
 
     Returns
     -------
@@ -468,8 +468,11 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
     for m in range(q.shape[1]):
         ax.plot(q[:, m, 0], q[:, m, 1], alpha=0.9, **_track_style(m, leader, q.shape[1]))
     shapes, texts = [], []
-    for i, k in enumerate(steps if steps is not None else mission_snapshot_steps(result, b)):
-        shape = q[k][outline_order(q[k])]
+    kept = result.trajectory_steps  # the steps whose positions are kept (all by default)
+    for i, step in enumerate(steps if steps is not None else mission_snapshot_steps(result, b)):
+        row = int(np.argmin(np.abs(kept - step)))  # the nearest kept step
+        k = int(kept[row])
+        shape = q[row][outline_order(q[row])]
         label = None if i else "formation snapshot"
         ax.add_patch(Polygon(shape, closed=True, fill=False, ec="k", lw=1.0, zorder=3,
                              gid=SNAPSHOT_GID, label=label))  # fmt: skip
