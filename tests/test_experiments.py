@@ -21,7 +21,7 @@ from crlbswarm import (
 )
 
 DEFAULT_ALTITUDES = np.arange(10.0, 200.0 + 1e-9, 5.0)  # 10 m to 200 m, 5 m steps
-BENCHMARKS = ["fixed_polygon", "arc", "line", "random_disc"]
+BENCHMARKS = ["fixed_polygon", "arc", "line", "random_disc", "fixed_disc"]
 
 
 @pytest.fixture(scope="module")
@@ -74,6 +74,13 @@ def test_benchmarks_are_the_documented_formations(sweep):
         sweep.sem["random_disc"], per_draw.std(axis=-1, ddof=1) / np.sqrt(200), rtol=1e-12
     )
     assert np.all(sweep.sem["random_disc"] > 0)
+    # fixed_disc: the same unit-disc draws at a radius of 10 m whatever the altitude
+    fixed = random_disc_formations(6, origin, 10.0, 200, np.random.default_rng(0))
+    per_draw = crlb(fixed, origin, h[:, None])
+    np.testing.assert_allclose(sweep.crlb["fixed_disc"], per_draw.mean(axis=-1), rtol=1e-13)
+    np.testing.assert_allclose(
+        sweep.sem["fixed_disc"], per_draw.std(axis=-1, ddof=1) / np.sqrt(200), rtol=1e-12
+    )
 
 
 def test_sweep_is_deterministic_given_the_seed(sweep):
@@ -94,12 +101,14 @@ def test_sweep_parameters_and_columns(sweep):
         "disc_factor": 2.0,
         "n_random": 200,
         "seed": 0,
+        "fixed_disc_radius_m": 10.0,
     }
     cols = sweep.columns()
     assert list(cols)[:2] == ["altitude_m", "bound_m2"]
     for name in FORMATION_LABELS:
         np.testing.assert_array_equal(cols[f"crlb_{name}_m2"], sweep.crlb[name])
     assert "sem_random_disc_m2" in cols
+    assert "sem_fixed_disc_m2" in cols
     assert "sem_line_m2" not in cols  # all-zero SEM columns are left out
 
 
@@ -111,6 +120,7 @@ def test_sweep_other_arguments():
     np.testing.assert_allclose(s.bound, crlb_bound(4, altitudes, Radar(tx_power=1.0)), rtol=1e-15)
     np.testing.assert_allclose(s.crlb["optimal"], s.bound, rtol=1e-12)
     np.testing.assert_array_equal(s.sem["random_disc"], 0.0)  # one draw: no spread estimate
+    np.testing.assert_array_equal(s.sem["fixed_disc"], 0.0)
 
 
 @pytest.mark.parametrize(
@@ -124,6 +134,7 @@ def test_sweep_other_arguments():
         # The next three are delegated to the formations, whose messages name *their*
         # parameters (radius, span, n_draws): library bug, reported, not papered over.
         ({"fixed_radius": -1.0}, r"^fixed_radius"),
+        ({"fixed_disc_radius": 0.0}, r"^fixed_disc_radius"),
         ({"arc_span": 4.0}, r"^arc_span"),
         ({"n_random": 0}, r"^n_random"),
     ],

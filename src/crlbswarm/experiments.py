@@ -27,6 +27,7 @@ from .formations import (
 from .radar import Radar, check_radar
 
 __all__ = [
+    "FIXED_DISC_RADIUS",
     "FORMATION_LABELS",
     "AltitudeSweep",
     "ElevationCurve",
@@ -45,7 +46,12 @@ FORMATION_LABELS: dict[str, str] = {
     "arc": "one-sided 90° arc at r*",
     "line": "line at distance r*",
     "random_disc": "random in disc of radius 2r* (mean)",
+    "fixed_disc": "random in a fixed disc, r = 10 m (mean)",
 }
+
+#: Radius of the ``fixed_disc`` benchmark by default, m: the disc of the paper mission's
+#: 20 m x 20 m start square, the same whatever the altitude.
+FIXED_DISC_RADIUS = 10.0
 
 _DEFAULT_RADAR = Radar()
 
@@ -152,6 +158,7 @@ def formations_over_altitude(
     disc_factor: float,
     n_random: int,
     seed: int,
+    fixed_disc_radius: float = FIXED_DISC_RADIUS,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """F* and every benchmark formation over a range of altitudes, target at the origin.
 
@@ -173,6 +180,8 @@ def formations_over_altitude(
         Number of random formations per altitude.
     seed : int
         Seed of the random formations.
+    fixed_disc_radius : float, default 10
+        Radius of the ``fixed_disc`` benchmark, m: the same at every altitude.
 
     Returns
     -------
@@ -180,8 +189,8 @@ def formations_over_altitude(
         The validated altitudes (a copy).
     formations : dict of str to ndarray
         By :data:`FORMATION_LABELS` key: shape (K, M, 2) for the deterministic formations,
-        (K, n_random, M, 2) for ``random_disc`` (the same unit-disc draws scaled at every
-        altitude).
+        (K, n_random, M, 2) for ``random_disc`` and ``fixed_disc`` (the same unit-disc
+        draws, scaled by ``disc_factor`` :math:`r^*` and by ``fixed_disc_radius``).
     """
     h = _altitudes(altitudes)
     check_radar(radar, None)
@@ -195,23 +204,30 @@ def formations_over_altitude(
             f"must be between {MIN_DISC_FACTOR:g} and {MAX_DISC_FACTOR:g}, got {factor!r}",
         )
     _v.length(_v.scalar(fixed_radius, "fixed_radius"), "fixed_radius")
+    name = "fixed_disc_radius"
+    disc_radius = float(_v.length(_v.scalar(fixed_disc_radius, name), name))
     span = _v.scalar(arc_span, "arc_span")
     if not MIN_SPAN <= span <= np.pi:
         raise FieldError("arc_span", f"must lie in [{MIN_SPAN:g}, pi] rad, got {span!r}")
     draws = _v.count(n_random, "n_random", 1)
     seed = _v.seed(seed, "seed")
-    size = float(h.size) * (draws + 4) * n
+    size = float(h.size) * (2 * draws + 4) * n
     _v.check_elements(2.0 * size, "n_random", f"{size:.3g} UAV positions", copies=4)
     h = h.copy()  # results must not share memory with the caller's array
     origin = np.zeros(2)
     r_star = optimal_radius(h, radar)
-    rng = np.random.default_rng(seed)
     return h, {
         "optimal": optimal_formation(n, origin, h, radar),
         "fixed_polygon": fixed_radius_polygon(n, np.zeros((h.size, 2)), fixed_radius),
         "arc": arc_formation(n, origin, r_star, span=span),
         "line": line_formation(n, origin, r_star, 2.0 * r_star),
-        "random_disc": random_disc_formations(n, origin, factor * r_star, draws, rng),
+        "random_disc": random_disc_formations(
+            n, origin, factor * r_star, draws, np.random.default_rng(seed)
+        ),
+        # The same unit-disc draws (same seed), at a fixed size in metres.
+        "fixed_disc": random_disc_formations(
+            n, origin, np.full(h.size, disc_radius), draws, np.random.default_rng(seed)
+        ),
     }
 
 
@@ -225,14 +241,16 @@ def crlb_vs_altitude(
     disc_factor: float = 2.0,
     n_random: int = 200,
     seed: int = 0,
+    fixed_disc_radius: float = FIXED_DISC_RADIUS,
 ) -> AltitudeSweep:
     """CRLB against altitude for :math:`F^*` and the benchmark formations (Fig. 2).
 
     The target sits at the origin (the CRLB is invariant to translation). The benchmarks
     are those of :mod:`crlbswarm.formations`: ``fixed_polygon`` (radius ``fixed_radius``),
     ``arc`` (span ``arc_span`` at :math:`r^*`), ``line`` (length :math:`2r^*` at distance
-    :math:`r^*`) and ``random_disc`` (radius ``disc_factor`` :math:`r^*`, mean over
-    ``n_random`` draws; the same draws, scaled, at every altitude).
+    :math:`r^*`), ``random_disc`` (radius ``disc_factor`` :math:`r^*`, mean over
+    ``n_random`` draws; the same draws, scaled, at every altitude) and ``fixed_disc`` (the
+    same draws in a disc of radius ``fixed_disc_radius`` whatever the altitude).
 
     Parameters
     ----------
@@ -253,6 +271,8 @@ def crlb_vs_altitude(
         Number of random formations per altitude.
     seed : int, default 0
         Seed of the random formations.
+    fixed_disc_radius : float, default 10
+        Radius of the fixed random disc, m (:data:`FIXED_DISC_RADIUS`).
 
     Returns
     -------
@@ -260,17 +280,29 @@ def crlb_vs_altitude(
         The data of Fig. 2.
     """
     h, formations = formations_over_altitude(
-        altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, n_random, seed
+        altitudes,
+        n_uavs,
+        radar,
+        fixed_radius,
+        arc_span,
+        disc_factor,
+        n_random,
+        seed,
+        fixed_disc_radius,
     )
     origin = np.zeros(2)
-    draws = formations.pop("random_disc")
-    values = {name: crlb(f, origin, h, radar) for name, f in formations.items()}
-    sem = {name: np.zeros_like(v) for name, v in values.items()}
-    random_crlb = crlb(draws, origin, h[:, None], radar)
-    values["random_disc"] = random_crlb.mean(axis=-1)
-    sem["random_disc"] = (
-        random_crlb.std(axis=-1, ddof=1) / np.sqrt(n_random) if n_random > 1 else np.zeros_like(h)
-    )
+    values: dict[str, np.ndarray] = {}
+    sem: dict[str, np.ndarray] = {}
+    for name, f in formations.items():
+        if f.ndim == 3:  # one deterministic formation per altitude
+            values[name] = crlb(f, origin, h, radar)
+            sem[name] = np.zeros_like(h)
+            continue
+        draws = crlb(f, origin, h[:, None], radar)  # (K, n_random)
+        values[name] = draws.mean(axis=-1)
+        sem[name] = (
+            draws.std(axis=-1, ddof=1) / np.sqrt(n_random) if n_random > 1 else np.zeros_like(h)
+        )
     return AltitudeSweep(
         altitude=h,
         n_uavs=n_uavs,
@@ -283,6 +315,7 @@ def crlb_vs_altitude(
             "disc_factor": float(disc_factor),
             "n_random": int(n_random),
             "seed": int(seed),
+            "fixed_disc_radius_m": float(fixed_disc_radius),
         },
     )
 

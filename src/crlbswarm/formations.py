@@ -1,6 +1,6 @@
 r"""Benchmark formations for Fig. 2 of the paper (not named in the paper; our choices).
 
-The paper compares :math:`F^*` with unnamed "benchmark formations". crlbswarm provides four,
+The paper compares :math:`F^*` with unnamed "benchmark formations". crlbswarm provides five,
 each a plausible formation a designer might fly without the CRLB analysis, and each strictly
 worse than :math:`F^*` at every altitude of Fig. 2 (reasons below and in the user guide):
 
@@ -19,6 +19,10 @@ worse than :math:`F^*` at every altitude of Fig. 2 (reasons below and in the use
 ``random_disc``
     UAVs drawn uniformly in a disc of radius :math:`2r^*` centred on the target; Fig. 2
     shows the mean CRLB over seeded draws.
+``fixed_disc``
+    The same draws in a disc of a fixed radius (10 m by default, the paper mission's start
+    square) whatever the altitude, also built by :func:`random_disc_formations`: with the
+    fixed polygon, the benchmark whose gap to :math:`F^*` grows with the altitude.
 """
 
 from __future__ import annotations

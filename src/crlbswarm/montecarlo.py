@@ -22,7 +22,7 @@ from . import _validation as _v
 from .design import optimal_radius
 from .errors import FieldError
 from .estimation import estimate_target, measure_ranges
-from .experiments import FORMATION_LABELS, formations_over_altitude
+from .experiments import FIXED_DISC_RADIUS, FORMATION_LABELS, formations_over_altitude
 from .fisher import crlb
 from .radar import Radar
 
@@ -220,10 +220,11 @@ class EstimatorSweep:
         For each formation (keys of :data:`crlbswarm.FORMATION_LABELS`), one result per
         altitude. ``random_disc`` is one seeded draw per altitude (its own CRLB), not a
         mean over draws (the same unit-disc draw, scaled by :math:`2r^*`, at every
-        altitude). ``line`` starts every trial from a coarse prior (true target plus
-        N(0, (r*/8)^2) per axis): a line of UAVs cannot tell the target from its mirror
-        image, so without a prior the MLE picks either at random. All other formations start
-        from the closed-form linearised estimate.
+        altitude); ``fixed_disc`` is that same draw at a fixed radius in metres. ``line``
+        starts every trial from a coarse prior (true target plus N(0, (r*/8)^2) per axis):
+        a line of UAVs cannot tell the target from its mirror image, so without a prior the
+        MLE picks either at random. All other formations start from the closed-form
+        linearised estimate.
     """
 
     altitude: np.ndarray
@@ -259,6 +260,7 @@ def estimator_vs_altitude(
     fixed_radius: float = 5.0,
     arc_span: float = 0.5 * np.pi,
     disc_factor: float = 2.0,
+    fixed_disc_radius: float = FIXED_DISC_RADIUS,
 ) -> EstimatorSweep:
     """MSE of the MLE beside the CRLB over altitude, for F* and every benchmark formation.
 
@@ -280,6 +282,8 @@ def estimator_vs_altitude(
         Span of the arc, rad.
     disc_factor : float, default 2
         Radius of the random disc in units of r*.
+    fixed_disc_radius : float, default 10
+        Radius of the fixed random disc (``fixed_disc``), m, whatever the altitude.
 
     Returns
     -------
@@ -292,9 +296,10 @@ def estimator_vs_altitude(
     check_trials(n, _v.uav_count(n_uavs, "n_uavs"))
     seed = _v.seed(seed, "seed")
     h, formations = formations_over_altitude(
-        altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed
+        altitudes, n_uavs, radar, fixed_radius, arc_span, disc_factor, 1, seed, fixed_disc_radius
     )
-    formations["random_disc"] = formations["random_disc"][:, 0]
+    for name in ("random_disc", "fixed_disc"):
+        formations[name] = formations[name][:, 0]
     streams = np.random.SeedSequence(seed).spawn(len(formations) * h.size)
     results: dict[str, list[MonteCarloResult]] = {name: [] for name in FORMATION_LABELS}
     origin = np.zeros(2)
