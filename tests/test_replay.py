@@ -191,6 +191,8 @@ def test_cli_writes_the_page(paper_dir, tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "option"),
     [(["--runs", "0:9"], "--runs"), (["--runs", "x"], "--runs"),
+     (["--runs", "0:1000000000000"], "--runs"), (["--runs", "2:1"], "--runs"),
+     (["--runs=-1"], "--runs"),
      (["--max-frames", "1"], "--max-frames"), (["--max-mb", "-2"], "--max-mb")],
 )  # fmt: skip
 def test_cli_errors_are_one_line_and_write_nothing(paper_dir, tmp_path, capsys, argv, option):

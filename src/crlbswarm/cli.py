@@ -928,28 +928,33 @@ def _add_replay(sub: Any) -> None:
             help="title of the page (default: scenario name and number of runs)")  # fmt: skip
 
 
-def _run_list(text: str) -> list[int]:
-    """The run indices of ``--runs``: ``I``, ``A:B`` (B excluded), comma-separated."""
+def _run_list(text: str, n_runs: int) -> list[int]:
+    """The run indices of ``--runs``: ``I``, ``A:B`` (B excluded), comma-separated, each in
+    ``0 .. n_runs - 1`` (checked before a range is expanded)."""
     runs: list[int] = []
     for item in text.split(","):
         first, colon, last = item.strip().partition(":")
         try:
-            if colon:
-                runs.extend(range(int(first), int(last)))
-            else:
-                runs.append(int(first))
+            lo, hi = (int(first), int(last)) if colon else (int(first), int(first) + 1)
         except ValueError:
             raise FieldError("runs", f"expected indices I or ranges A:B, got {item!r}") from None
+        if not 0 <= lo < hi <= n_runs:
+            raise FieldError(
+                "runs", f"{item.strip()!r} is not a non-empty range of runs in 0..{n_runs - 1}"
+            )
+        runs.extend(range(lo, hi))
     return runs
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from .output import check_output_file
     from .replay import MAX_FRAMES, MAX_MB, load_mission_folder, write_replay
+    from .results import GroupMissionResult
 
-    runs = None if args.runs is None else _run_list(args.runs)
     check_output_file(args.out, "out", overwrite=args.force)  # before reading anything
     result = load_mission_folder(args.runs_dir)
+    first = result.groups[0] if isinstance(result, GroupMissionResult) else result
+    runs = None if args.runs is None else _run_list(args.runs, first.n_runs)
     path = write_replay(
         result,
         args.out,
