@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import copy
 import csv
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -69,6 +72,8 @@ def assert_images(folder: Path, names: set[str]) -> None:
             with Image.open(folder / name) as image:
                 image.load()  # a complete, decodable PNG
                 assert min(image.size) > 50
+        else:
+            assert (folder / name).read_text(encoding="utf-8").lstrip().startswith("<?xml")
 
 
 @pytest.mark.parametrize(
@@ -77,13 +82,15 @@ def assert_images(folder: Path, names: set[str]) -> None:
         ("batch", 2, {"run2_trajectories.png", "run2_timeseries.png", "metrics.png"}),
         ("estimation", 1, {"run1_trajectories.png", "run1_timeseries.png", "estimation.png",
                            "metrics.png"}),
-        ("no_trajectories", 1, {"run1_timeseries.png", "metrics.png"}),
+        ("no_trajectories", 1, {"run1_timeseries.svg", "metrics.svg"}),
     ],
 )  # fmt: skip
 def test_plot_writes_the_figures_of_each_kind_of_folder(runs, tmp_path, capsys, kind, run,
                                                         expected):  # fmt: skip
     out = tmp_path / "figs"
-    status, lines, err = plot(capsys, str(runs[kind]), "--run", str(run), "--out", str(out), *DPI)
+    fmt = next(iter(expected)).rsplit(".", 1)[1]
+    status, lines, err = plot(capsys, str(runs[kind]), "--run", str(run), "--out", str(out),
+                              "--format", fmt, *DPI)  # fmt: skip
     assert status == 0, err
     assert_images(out, expected)
     assert sorted(line.removeprefix("wrote ") for line in lines if line.startswith("wrote")) \
@@ -93,13 +100,12 @@ def test_plot_writes_the_figures_of_each_kind_of_folder(runs, tmp_path, capsys, 
 
 
 def test_plot_defaults_to_a_plots_folder_and_replaces_files_only_with_force(runs, capsys):
-    argv = [str(runs["single"]), "--format", "svg"]
+    argv = [str(runs["single"]), *DPI]
     status, _, err = plot(capsys, *argv)
     assert status == 0, err
     folder = runs["single"] / "plots"
-    assert written(folder) == {"run0_trajectories.svg", "run0_timeseries.svg"}
-    figure = folder / "run0_timeseries.svg"
-    assert figure.read_text(encoding="utf-8").lstrip().startswith("<?xml")
+    assert_images(folder, {"run0_trajectories.png", "run0_timeseries.png"})
+    figure = folder / "run0_timeseries.png"
     assert load_results(runs["single"]).n_runs == 1  # the folder is still a result
     stamp = figure.stat().st_mtime_ns
     status, _, err = plot(capsys, *argv)
@@ -173,3 +179,19 @@ def test_batch_view_counts_the_runs_of_metrics_csv(runs):
     for ax in axes:
         for label in (ax.get_xlabel(), ax.get_ylabel()):
             assert label == "outcome" or label.endswith(")"), label
+
+
+def test_refusals_load_no_matplotlib(runs, tmp_path):
+    """A wrong folder or run is refused before Matplotlib (or Pillow, or ffmpeg) loads."""
+    code = (
+        "import contextlib, io, json, sys\nfrom crlbswarm.cli import main\n"
+        "with contextlib.redirect_stderr(io.StringIO()):\n"
+        f"    main(['plot', {str(tmp_path)!r}])\n"
+        f"    main(['plot', {str(runs['single'])!r}, '--run', '1'])\n"
+        f"    main(['animate', {str(tmp_path)!r}, '-o', 'x.mp4'])\n"
+        "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=120)  # fmt: skip
+    loaded = set(json.loads(out.stdout.strip().splitlines()[-1]))
+    assert loaded & {"matplotlib", "PIL", "imageio_ffmpeg"} == set()

@@ -6,18 +6,18 @@ crosses itself), the CRLB-optimal formation F* over the target, the target and, 
 estimation on, the UAVs' estimate of it; a caption gives the time, the scaling factor eta,
 the CRLB and its ratio to the bound.
 
-**Frames.** One frame per kept step of the run (:attr:`crlbswarm.MissionResult.
-trajectory_steps`: every step, or every ``trajectory_stride``-th and the last), decimated
-evenly to at most ``max_frames`` (:func:`frame_steps`: the first and the last step always
-drawn), played at ``fps`` frames per second. The tracks are drawn through every kept step,
-whatever the decimation.
+**Frames.** One frame per kept step of the run
+(:attr:`crlbswarm.MissionResult.trajectory_steps`: every step, or every
+``trajectory_stride``-th and the last), decimated evenly to at most ``max_frames``
+(:func:`frame_steps`: the first and the last step always drawn), played at ``fps`` frames
+per second. The tracks are drawn through every kept step, whatever the decimation.
 
 **Files.** An ``.mp4`` (H.264, ``yuv420p``, playable everywhere) is encoded by the ffmpeg
 binary of the optional package ``imageio-ffmpeg`` (``pip install 'crlbswarm[video]'``); a
 ``.gif`` needs only Pillow, which comes with Matplotlib. Either is written to a temporary
-file beside the destination and renamed when complete (:func:`crlbswarm.output.
-atomic_path`). Matplotlib, Pillow and imageio-ffmpeg are imported only when an animation is
-made.
+file beside the destination and renamed when complete
+(:func:`crlbswarm.output.atomic_path`). Matplotlib, Pillow and imageio-ffmpeg are imported
+only when an animation is made.
 """
 
 from __future__ import annotations
@@ -331,7 +331,8 @@ class _Scene:
         crlb = r.crlb[b, step]
         text = (
             f"t = {r.time[step]:6.1f} s   η = {r.eta[b, step]:.3f}   "
-            f"CRLB = {crlb:.3g} m² = {crlb / r.bound:.3g} × bound"
+            f"CRLB = {crlb:.3g} m² = {crlb / r.bound:{'.3f' if crlb < 100 * r.bound else '.3g'}}"
+            " × bound"
         )
         if self.estimate is not None and r.estimate is not None:
             estimate = r.estimate[b, step]

@@ -507,13 +507,14 @@ def _add_animate(sub: Any) -> None:
 
 def _cmd_plot(args: argparse.Namespace) -> int:
     from .output import check_output_file, check_output_folder
-    from .plots import run_figure_names
     from .results import load_results
 
     result = load_results(args.runs_dir)
     b = result.run_index(args.run)
     out = args.out if args.out is not None else args.runs_dir / "plots"
     check_output_folder(out, "out_dir")
+    from .plots import run_figure_names  # (Matplotlib: after the checks of the input)
+
     names = run_figure_names(result)
     paths = {n: out / f"{f'run{b}_' if n in ('trajectories', 'timeseries') else ''}{n}."
              f"{args.format}" for n in names}  # fmt: skip
