@@ -867,16 +867,27 @@ __all__ += ["RUN_FIGURES", "plot_batch_metrics", "run_figure_names", "run_figure
 
 
 def _finite_hist(
-    ax: Axes, values: np.ndarray, xlabel: str, empty: str, color: str = "C0"
+    ax: Axes,
+    values: np.ndarray,
+    xlabel: str,
+    empty: str,
+    color: str = "C0",
+    marks: Sequence[float] = (),
 ) -> np.ndarray:
-    """A histogram of the finite ``values`` (runs), or the text ``empty`` if there are none."""
+    """A histogram of the finite ``values`` (runs), or the text ``empty`` if there are none;
+    its bins span the values and the reference values ``marks`` (drawn by the caller)."""
     from matplotlib.ticker import MaxNLocator
 
     finite = np.asarray(values, dtype=float)
     finite = finite[np.isfinite(finite)]
     if finite.size:
-        bins = int(np.clip(np.sqrt(finite.size), 5, 40))
-        ax.hist(finite, bins=bins, color=color, alpha=0.85, edgecolor="white", lw=0.5)
+        bins = int(np.clip(2 * np.sqrt(finite.size), 8, 40))
+        # Values (nearly) all equal: bins at least 2 % of their size wide, so bars show.
+        span = np.concatenate([finite, np.asarray(marks, dtype=float)])
+        low, high = float(span.min()), float(span.max())
+        pad = max(0.0, 0.02 * max(abs(low), abs(high), 1e-9) - (high - low)) / 2
+        ax.hist(finite, bins=bins, range=(low - pad, high + pad), color=color, alpha=0.85,
+                edgecolor="white", lw=0.5)  # fmt: skip
     else:
         ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=9)
     ax.set_xlabel(xlabel)
@@ -931,38 +942,39 @@ def plot_batch_metrics(result: MissionResult, axes: Sequence[Axes] | None = None
     ax.set_ylim(0, max(counts.values()) * 1.15 + 0.5)
     ax.set_title("outcomes", fontsize=9)
     ax = axes[1]
-    _finite_hist(ax, m["final_crlb_ratio"], "final CRLB / bound (ratio, 1 = optimum)", "-")
+    _finite_hist(ax, m["final_crlb_ratio"], "final CRLB / bound (ratio, 1 = optimum)", "-",
+                 marks=[1.0 + CRLB_TOL])  # fmt: skip
     ax.axvline(1.0 + CRLB_TOL, color="k", ls="--", lw=0.8, label=f"1 + {CRLB_TOL:g} (converged)")
     ax.legend(fontsize=7)
     ax.set_title("final CRLB relative to the bound", fontsize=9)
     ax = axes[2]
     conv = _finite_hist(ax, m["convergence_time_s"], "convergence time (s)", "no run converged")
-    ax.set_title(f"convergence time ({conv.size} of {n} runs converged)", fontsize=9)
+    ax.set_title(f"convergence time ({conv.size} of {n} converged)", fontsize=9)
     ax = axes[3]
     _finite_hist(ax, m["min_clearance_m"], "smallest clearance to an obstacle (m)",
-                 "no obstacles", color="C5")  # fmt: skip
+                 "no obstacles", color="C5", marks=[0.0, sc.control.safety_radius])  # fmt: skip
     if np.isfinite(m["min_clearance_m"]).any():
         ax.axvline(sc.control.safety_radius, color="k", ls="--", lw=0.8,
                    label=f"safety radius {sc.control.safety_radius:g} m")  # fmt: skip
         ax.axvline(0.0, color="C3", lw=0.8, label="obstacle boundary")
         ax.legend(fontsize=7)
-    ax.set_title("smallest clearance over the mission", fontsize=9)
+    ax.set_title("smallest clearance", fontsize=9)
     ax = axes[4]
-    _finite_hist(ax, m["min_separation_m"], "smallest separation between UAVs (m)", "-",
-                 color="C4")  # fmt: skip
     limit = sc.safety.min_separation
+    _finite_hist(ax, m["min_separation_m"], "smallest separation between UAVs (m)", "-",
+                 color="C4", marks=[limit])  # fmt: skip
     ax.axvline(limit, color="C3", ls="--", lw=0.8, label=f"{limit:g} m: collision below")
     ax.legend(fontsize=7)
-    ax.set_title("smallest separation over the mission", fontsize=9)
+    ax.set_title("smallest separation", fontsize=9)
     ax = axes[5]
     if "final_estimation_error_m" in m:
         _finite_hist(ax, m["final_estimation_error_m"], "final estimation error (m)", "-",
                      color="C9")  # fmt: skip
-        ax.set_title("final distance from the estimate to the target", fontsize=9)
+        ax.set_title("final error of the UAVs' estimate", fontsize=9)
     else:
         _finite_hist(ax, m["final_centroid_error_m"], "final centroid error (m)", "-",
                      color="C9")  # fmt: skip
-        ax.set_title("final distance from the centroid to its place", fontsize=9)
+        ax.set_title("final centroid error", fontsize=9)
     seeds = f"seed {result.seeds[0]}" if n == 1 else f"seeds {result.seeds[0]}..{result.seeds[-1]}"
     fig.suptitle(f"Metrics of {n} run{'s' * (n != 1)} of scenario '{sc.name}' ({seeds})")
     return fig
