@@ -28,6 +28,7 @@ MODULES = [
     "crlbswarm.formations",
     "crlbswarm.experiments",
     "crlbswarm.plots",
+    "crlbswarm.animation",
     "crlbswarm.output",
     "crlbswarm.graphs",
     "crlbswarm.obstacles",

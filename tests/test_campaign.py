@@ -24,7 +24,7 @@ import pandas as pd
 import pytest
 from distributed import Client, LocalCluster, WorkerPlugin
 
-from crlbswarm import FieldError, load_scenario, simulate
+from crlbswarm import FieldError, load_results, load_scenario, simulate
 from crlbswarm.campaign import CampaignSpec, plan_tasks, run_campaign
 from crlbswarm.scenario import Scenario
 
@@ -294,10 +294,11 @@ def test_random_sample_of_variants_is_seeded_and_in_range():
 
 
 def test_trajectories_only_when_asked(tmp_path, shared_scheduler):
-    """With ``trajectories = true`` each task also saves its positions, equal to simulate's."""
+    """With ``trajectories = true`` each task also saves its result (simulate's folder),
+    read back by load_results: one part, or the variant's folder with all its parts."""
     text = 'base = "paper"\nbatch_size = 2\ntrajectories = true\n[seeds]\ncount = 3\n'
     run_campaign(CampaignSpec.from_toml(text), tmp_path, scheduler=shared_scheduler)
-    files = sorted(tmp_path.glob("trajectories/*/*.npz"))
+    files = sorted(tmp_path.glob("trajectories/*/*/trajectories.npz"))
     # The Parquet dataset holds only Parquet files, so pandas reads it as is.
     assert len(load_runs(tmp_path)) == 3
     assert len(files) == 2
@@ -305,6 +306,17 @@ def test_trajectories_only_when_asked(tmp_path, shared_scheduler):
         positions = data["positions"]
     single = simulate(load_scenario("paper"), seed=2)
     np.testing.assert_array_equal(positions[0], single.positions[0])
+    part = load_results(files[-1].parent)
+    assert part.seeds.tolist() == [2]
+    np.testing.assert_array_equal(part.crlb, single.crlb)
+    variant = load_results(files[-1].parent.parent)
+    assert variant.seeds.tolist() == [0, 1, 2]
+    np.testing.assert_array_equal(variant.positions[2], single.positions[0])
+    metrics = load_runs(tmp_path)
+    np.testing.assert_array_equal(variant.metrics["final_crlb_ratio"],
+                                  metrics["final_crlb_ratio"].to_numpy())  # fmt: skip
+    with pytest.raises(FieldError, match="holds a campaign: load a variant"):
+        load_results(tmp_path)
     run_campaign(
         CampaignSpec.from_toml(text.replace("true", "false")),
         tmp_path / "b",

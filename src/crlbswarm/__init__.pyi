@@ -7,6 +7,11 @@ is written ``name as name``, the explicit re-export of a stub.
 
 __version__: str
 
+# Modules that draw (Matplotlib, imported on first use): crlbswarm.plots, crlbswarm.animation.
+from . import (
+    animation as animation,
+    plots as plots,
+)
 from .campaign import (
     CampaignSpec as CampaignSpec,
     run_campaign as run_campaign,

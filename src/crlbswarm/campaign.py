@@ -22,7 +22,9 @@ skipped, and an interrupted campaign loses only the tasks in flight. A task whos
 is rescheduled by Dask (up to ``distributed.scheduler.allowed-failures`` times, 3 by
 default); a task that fails (for example a diverged run) stops the campaign with one line
 naming the variant and the seeds, keeping every finished task. With ``trajectories = true``
-each task's positions go to ``trajectories/variant=<id>/part-<first>-<last>.npz``.
+each task's whole result (trajectories and time series, the folder ``crlbswarm simulate``
+writes) goes to ``trajectories/variant=<id>/part-<first>-<last>/``, which
+:func:`crlbswarm.load_results` reads (one part, or the variant's folder with all its parts).
 
 Safety (docs/campaigns.md): every size is checked before anything is allocated
 (:data:`MAX_VARIANTS`, :data:`MAX_TASKS`, the memory of one task); the cluster is up (a local
@@ -41,6 +43,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import socket
 import stat
 from collections.abc import Callable, Iterator
@@ -60,7 +63,7 @@ from .errors import (
     SimulationDivergedError,
     one_line,
 )
-from .output import atomic_path, check_output_folder, write_text
+from .output import STAGE_PREFIX, atomic_path, check_output_folder, write_text
 from .scenario import BUILTIN_SCENARIOS, Scenario, scenario_data
 
 __all__ = [
@@ -199,7 +202,9 @@ class CampaignSpec(ConfigModel):
         250, description="runs per task (one variant, consecutive seeds)"
     )
     trajectories: bool = Field(
-        False, description="also save each task's trajectories (.npz beside its Parquet file)"
+        False,
+        description="also save each task's result with its trajectories (a folder "
+        "read by load_results)",
     )
 
     @model_validator(mode="after")
@@ -461,13 +466,13 @@ def run_task(
     last : int
         Last seed (inclusive).
     trajectories : bool
-        Also return the positions (B, K+1, M, 2).
+        Keep the trajectories, and also return the whole result.
 
     Returns
     -------
     dict
-        ``columns`` (metric name to 1-D array, with ``variant`` and ``seed``) and optionally
-        ``positions``.
+        ``columns`` (metric name to 1-D array, with ``variant`` and ``seed``) and, with
+        ``trajectories``, ``result`` (the :class:`crlbswarm.MissionResult`).
     """
     import numba
 
@@ -483,7 +488,7 @@ def run_task(
     columns.update({k: np.asarray(v) for k, v in result.metrics.items()})
     out: dict[str, Any] = {"columns": columns}
     if trajectories:
-        out["positions"] = result.positions
+        out["result"] = result
     return out
 
 
@@ -914,6 +919,9 @@ def _prepare_folder(folder: Path, canonical: str, table: Any, spec_text: str | N
                     "trajectories/*/.part-*"):  # fmt: skip
         for stale in folder.glob(pattern):
             stale.unlink(missing_ok=True)
+    for pattern in (f"trajectories/*/{STAGE_PREFIX}*", f"trajectories/*/*/{STAGE_PREFIX}*"):
+        for stale in folder.glob(pattern):  # results of tasks interrupted while being saved
+            shutil.rmtree(stale, ignore_errors=True)
     write_text(folder / "spec.json", canonical)
     if spec_text is not None:
         write_text(folder / "spec.toml", spec_text)
@@ -957,11 +965,9 @@ def _run_tasks(client: Any, spec: CampaignSpec, folder: Path, scenarios: list[di
         future.release()  # do not keep finished results on the workers
         path = _part_path(folder, v, a, b)
         # The Parquet part is written last: its presence marks the task done.
-        if spec.trajectories:
-            npz = folder / "trajectories" / path.parent.name / f"{path.stem}.npz"
-            npz.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(npz) as tmp:
-                np.savez(tmp, positions=result["positions"])
+        if spec.trajectories:  # the folder simulate writes (staged: absent or complete)
+            part = folder / "trajectories" / path.parent.name / path.stem
+            result["result"].save(part, overwrite=True)
         _write_part(path, result["columns"], variants[v], schema)
         del result
         done += 1

@@ -1,5 +1,5 @@
-"""Command-line interface: ``crlbswarm COMMAND`` (design, figures, replay, report, scenario,
-simulate, sweep).
+"""Command-line interface: ``crlbswarm COMMAND`` (animate, design, figures, plot, replay,
+report, scenario, simulate, sweep).
 
 The CLI only parses, calls the library and prints. Errors the user can cause (bad numbers,
 impossible parameters, an unwritable output folder) are :class:`~crlbswarm.errors.FieldError`
@@ -147,6 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_replay(sub)
     _add_report(sub)
+    _add_plot(sub)
+    _add_animate(sub)
     return parser
 
 
@@ -437,6 +439,112 @@ def _add_sweep(sub: Any) -> None:
         metavar="SECONDS",
         help="how long to wait for the scheduler (default %(default)s)",
     )
+
+
+# -- plot and animate a saved result -------------------------------------------------------
+def _runs_dir_argument(command: Any, fields: dict[str, str]) -> None:
+    """RUNS_DIR and --run of ``plot`` and ``animate``."""
+    command.add_argument("runs_dir", metavar="RUNS_DIR", type=_path,
+                         help="a folder written by crlbswarm simulate (a group's folder for "
+                         "several targets), or a campaign's trajectories/variant=<id> folder "
+                         "or one of its part folders")  # fmt: skip
+    fields["folder"] = fields["result"] = "RUNS_DIR"
+    _option(command, fields, "--run", field="run", type=int, default=0, metavar="I",
+            help="index of the run in the batch, from 0 (default 0)")  # fmt: skip
+
+
+def _add_plot(sub: Any) -> None:
+    from .paper import FIGURE_FORMATS
+
+    plot, fields = _command(
+        sub,
+        "plot",
+        _cmd_plot,
+        help="draw a run of a simulate folder: trajectories, time series, batch metrics",
+        description="Draw one run of a saved result (crlbswarm.load_results): its "
+        "trajectories with formation snapshots (runI_trajectories, as Fig. 3), its CRLB, cost "
+        "and eta over time (runI_timeseries, as Fig. 4), and for the whole batch the "
+        "estimation error against the PCRB (estimation, with estimation on) and the "
+        "distributions of the per-run metrics (metrics, with two runs or more).",
+    )
+    _runs_dir_argument(plot, fields)
+    _option(plot, fields, "--out", field="out_dir", type=_path, default=None, metavar="DIR",
+            help="output folder, created if missing (default RUNS_DIR/plots)")  # fmt: skip
+    _option(plot, fields, "--format", field="fmt", default="png", choices=FIGURE_FORMATS,
+            help="image format (default %(default)s)")  # fmt: skip
+    _option(plot, fields, "--dpi", field="dpi", type=int, default=150,
+            help="resolution of a png, pixels per inch (default %(default)s)")  # fmt: skip
+    plot.add_argument("--force", action="store_true",
+                      help="replace files of the same names in DIR")  # fmt: skip
+
+
+def _add_animate(sub: Any) -> None:
+    from .animation import DEFAULT_FPS, DEFAULT_MAX_FRAMES
+
+    animate, fields = _command(
+        sub,
+        "animate",
+        _cmd_animate,
+        help="write an animation (MP4 or GIF) of a run of a simulate folder",
+        description="Animate one run of a saved result: UAVs, their tracks, the formation "
+        "polygon, obstacles, the target and the UAVs' estimate, with time, eta and the CRLB "
+        "as a caption. One frame per kept step, evenly decimated to at most --max-frames "
+        "(first and last step included). An .mp4 needs the optional package imageio-ffmpeg "
+        "(pip install 'crlbswarm[video]'); a .gif does not.",
+    )
+    _runs_dir_argument(animate, fields)
+    _option(animate, fields, "-o", "--out", field="path", type=_path, required=True,
+            metavar="FILE", help="the animation, FILE.mp4 or FILE.gif (an existing file is "
+            "refused unless --force)")  # fmt: skip
+    _option(animate, fields, "--fps", field="fps", type=int, default=DEFAULT_FPS,
+            help="frames per second (default %(default)s)")  # fmt: skip
+    _option(animate, fields, "--max-frames", field="max_frames", type=int, metavar="N",
+            default=DEFAULT_MAX_FRAMES, help="most frames (default %(default)s)")  # fmt: skip
+    _option(animate, fields, "--dpi", field="dpi", type=int, default=100,
+            help="pixels per inch of the 8-inch-wide frames (default %(default)s)")  # fmt: skip
+    animate.add_argument("--force", action="store_true", help="replace FILE if it exists")
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from .output import check_output_file, check_output_folder
+    from .results import load_results
+
+    result = load_results(args.runs_dir)
+    b = result.run_index(args.run)
+    out = args.out if args.out is not None else args.runs_dir / "plots"
+    check_output_folder(out, "out_dir")
+    from .plots import run_figure_names  # (Matplotlib: after the checks of the input)
+
+    names = run_figure_names(result)
+    paths = {n: out / f"{f'run{b}_' if n in ('trajectories', 'timeseries') else ''}{n}."
+             f"{args.format}" for n in names}  # fmt: skip
+    if out.is_dir():  # nothing is replaced unasked, and nothing is written on a refusal
+        for path in paths.values():
+            check_output_file(path, "out_dir", overwrite=args.force)
+    from .output import make_output_folder, save_figure
+    from .plots import run_figures
+
+    figures = run_figures(result, b)
+    make_output_folder(out, "out_dir")
+    for name, fig in figures.items():
+        save_figure(fig, paths[name], dpi=args.dpi)
+        print(f"wrote {paths[name]}")
+    if "trajectories" not in names:
+        print("note: no trajectories in RUNS_DIR (simulated with --no-trajectories): "
+              "runI_trajectories left out")  # fmt: skip
+    return 0
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from .animation import animate_mission
+    from .results import load_results
+
+    result = load_results(args.runs_dir)
+    frames = animate_mission(result, args.out, args.run, fps=args.fps,
+                             max_frames=args.max_frames, dpi=args.dpi,
+                             overwrite=args.force)  # fmt: skip
+    print(f"wrote {args.out} ({frames} frames, {frames / args.fps:.1f} s at {args.fps} fps)")
+    return 0
 
 
 # -- commands ------------------------------------------------------------------------------

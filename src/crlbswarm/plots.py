@@ -860,3 +860,185 @@ def plot_estimation_timeseries(
     ax_c.set_xlabel("time (s)")
     ax_c.grid(True, which="both", alpha=0.3)
     return fig
+
+
+# -- any run of a saved result (``crlbswarm plot``) ------------------------------------------
+__all__ += ["RUN_FIGURES", "plot_batch_metrics", "run_figure_names", "run_figures"]
+
+
+def _finite_hist(
+    ax: Axes,
+    values: np.ndarray,
+    xlabel: str,
+    empty: str,
+    color: str = "C0",
+    marks: Sequence[float] = (),
+) -> np.ndarray:
+    """A histogram of the finite ``values`` (runs), or the text ``empty`` if there are none;
+    its bins span the values and the reference values ``marks`` (drawn by the caller)."""
+    from matplotlib.ticker import MaxNLocator
+
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size:
+        bins = int(np.clip(2 * np.sqrt(finite.size), 8, 40))
+        # Values (nearly) all equal: bins at least 2 % of their size wide, so bars show.
+        span = np.concatenate([finite, np.asarray(marks, dtype=float)])
+        low, high = float(span.min()), float(span.max())
+        pad = max(0.0, 0.02 * max(abs(low), abs(high), 1e-9) - (high - low)) / 2
+        ax.hist(finite, bins=bins, range=(low - pad, high + pad), color=color, alpha=0.85,
+                edgecolor="white", lw=0.5)  # fmt: skip
+    else:
+        ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=9)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("runs (count)")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.grid(True, alpha=0.3)
+    return finite
+
+
+def plot_batch_metrics(result: MissionResult, axes: Sequence[Axes] | None = None) -> Figure:
+    """Distributions of the per-run metrics of a batch (``result.metrics``).
+
+    Six panels: the count of each outcome (:data:`crlbswarm.results.OUTCOMES`), and
+    histograms over the runs of the final CRLB / bound (with the convergence tolerance
+    :data:`crlbswarm.results.CRLB_TOL`), the convergence time (converged runs only), the
+    smallest obstacle clearance (with the safety radius), the smallest separation between
+    two UAVs (with ``safety.min_separation``), and the final distance from the centroid to
+    its place over the target (or, with estimation, the final estimation error).
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result (one run or more).
+    axes : sequence of six matplotlib.axes.Axes, optional
+        Axes for the six panels, in the order above; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure holding the panels.
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    from .results import CRLB_TOL, OUTCOMES
+
+    if axes is None:
+        fig = Figure(figsize=(10.0, 6.4), layout="constrained")
+        axes = list(fig.subplots(2, 3).ravel())
+    if len(axes) != 6:
+        raise FieldError("axes", f"expected six axes, got {len(axes)}")
+    fig = _figure_of(axes[0])
+    m, sc, n = result.metrics, result.scenario, result.n_runs
+    counts = result.outcome_counts
+    ax = axes[0]
+    bars = ax.bar(OUTCOMES, [counts.get(k, 0) for k in OUTCOMES],
+                  color=["C3", "C2", "C1", "C7"])  # fmt: skip
+    ax.bar_label(bars, fontsize=8)
+    ax.set_xlabel("outcome")
+    ax.set_ylabel("runs (count)")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.tick_params(axis="x", labelsize=8)
+    ax.set_ylim(0, max(counts.values()) * 1.15 + 0.5)
+    ax.set_title("outcomes", fontsize=9)
+    ax = axes[1]
+    _finite_hist(ax, m["final_crlb_ratio"], "final CRLB / bound (ratio, 1 = optimum)", "-",
+                 marks=[1.0 + CRLB_TOL])  # fmt: skip
+    ax.axvline(1.0 + CRLB_TOL, color="k", ls="--", lw=0.8, label=f"1 + {CRLB_TOL:g} (converged)")
+    ax.legend(fontsize=7)
+    ax.set_title("final CRLB relative to the bound", fontsize=9)
+    ax = axes[2]
+    conv = _finite_hist(ax, m["convergence_time_s"], "convergence time (s)", "no run converged")
+    ax.set_title(f"convergence time ({conv.size} of {n} converged)", fontsize=9)
+    ax = axes[3]
+    _finite_hist(ax, m["min_clearance_m"], "smallest clearance to an obstacle (m)",
+                 "no obstacles", color="C5", marks=[0.0, sc.control.safety_radius])  # fmt: skip
+    if np.isfinite(m["min_clearance_m"]).any():
+        ax.axvline(sc.control.safety_radius, color="k", ls="--", lw=0.8,
+                   label=f"safety radius {sc.control.safety_radius:g} m")  # fmt: skip
+        ax.axvline(0.0, color="C3", lw=0.8, label="obstacle boundary")
+        ax.legend(fontsize=7)
+    ax.set_title("smallest clearance", fontsize=9)
+    ax = axes[4]
+    limit = sc.safety.min_separation
+    _finite_hist(ax, m["min_separation_m"], "smallest separation between UAVs (m)", "-",
+                 color="C4", marks=[limit])  # fmt: skip
+    ax.axvline(limit, color="C3", ls="--", lw=0.8, label=f"{limit:g} m: collision below")
+    ax.legend(fontsize=7)
+    ax.set_title("smallest separation", fontsize=9)
+    ax = axes[5]
+    if "final_estimation_error_m" in m:
+        _finite_hist(ax, m["final_estimation_error_m"], "final estimation error (m)", "-",
+                     color="C9")  # fmt: skip
+        ax.set_title("final error of the UAVs' estimate", fontsize=9)
+    else:
+        _finite_hist(ax, m["final_centroid_error_m"], "final centroid error (m)", "-",
+                     color="C9")  # fmt: skip
+        ax.set_title("final centroid error", fontsize=9)
+    seeds = f"seed {result.seeds[0]}" if n == 1 else f"seeds {result.seeds[0]}..{result.seeds[-1]}"
+    fig.suptitle(f"Metrics of {n} run{'s' * (n != 1)} of scenario '{sc.name}' ({seeds})")
+    return fig
+
+
+#: The figures of :func:`run_figures`, in order: name and what it shows.
+RUN_FIGURES = {
+    "trajectories": "Fig. 3 of the run: trajectories, obstacles, formation snapshots",
+    "timeseries": "Fig. 4 of the run: CRLB and bound, cost, eta and clearance over time",
+    "estimation": "with estimation: RMS estimation error over the runs and the PCRB",
+    "metrics": "with two runs or more: distributions of the per-run metrics",
+}
+
+
+def run_figures(result: MissionResult, run: int = 0) -> dict[str, Figure]:
+    """The figures of one run of a result, and of its batch: what ``crlbswarm plot`` writes.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result (for example :func:`crlbswarm.load_results` of a ``simulate``
+        folder).
+    run : int, default 0
+        Index of the run in the batch.
+
+    Returns
+    -------
+    dict of str to matplotlib.figure.Figure
+        By name (:data:`RUN_FIGURES`, in that order): ``trajectories``
+        (:func:`plot_mission_trajectories`; only if the trajectories were kept),
+        ``timeseries``
+        (:func:`plot_mission_timeseries`), ``estimation``
+        (:func:`plot_estimation_timeseries`; only with estimation) and ``metrics``
+        (:func:`plot_batch_metrics`; only for two runs or more).
+    """
+    b = result.run_index(run)
+    draw = {
+        "trajectories": lambda: plot_mission_trajectories(result, b),
+        "timeseries": lambda: plot_mission_timeseries(result, b),
+        "estimation": lambda: plot_estimation_timeseries(result),
+        "metrics": lambda: plot_batch_metrics(result),
+    }
+    return {name: draw[name]() for name in run_figure_names(result)}
+
+
+def run_figure_names(result: MissionResult) -> list[str]:
+    """The names of the figures :func:`run_figures` draws for ``result``.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result.
+
+    Returns
+    -------
+    list of str
+        Names of :data:`RUN_FIGURES`, in order: ``trajectories`` if the trajectories were
+        kept, ``timeseries``, ``estimation`` with estimation, ``metrics`` for two runs or
+        more.
+    """
+    kept = {
+        "trajectories": result.positions is not None,
+        "timeseries": True,
+        "estimation": result.estimate is not None,
+        "metrics": result.n_runs > 1,
+    }
+    return [name for name in RUN_FIGURES if kept[name]]

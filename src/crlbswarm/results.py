@@ -665,12 +665,22 @@ _ARRAY_FIELDS = tuple(
 
 
 def load_results(folder: str | os.PathLike[str]) -> MissionResult:
-    """Read a result written by :meth:`MissionResult.save` (or ``crlbswarm simulate``).
+    """Read a result written by :meth:`MissionResult.save` (``crlbswarm simulate``), or
+    the saved trajectories of a campaign variant (``crlbswarm sweep`` with
+    ``trajectories = true``).
+
+    A campaign saves each task's result as a folder of the same form,
+    ``trajectories/variant=<id>/part-<first>-<last>/``: give that folder (one task's runs)
+    or the variant's folder ``trajectories/variant=<id>`` (the runs of all its finished
+    tasks, in the order of their seeds; with estimation on, the PCRB of the whole is the
+    mean of the parts' PCRBs weighted by their runs, which is exact only for parts of one
+    task, as each part's PCRB comes from its runs' mean information).
 
     Parameters
     ----------
     folder : str or path-like
-        The folder holding ``trajectories.npz`` and ``scenario.toml``.
+        The folder holding ``trajectories.npz`` and ``scenario.toml``, or a campaign
+        variant's ``trajectories/variant=<id>`` folder.
 
     Returns
     -------
@@ -681,16 +691,18 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
     Raises
     ------
     FieldError
-        If the folder does not hold a complete result (naming the missing file).
+        If the folder does not hold a complete result (naming the missing file), or holds
+        a mission with several targets (each group's folder is a result), or a campaign
+        (naming the folders to load instead).
     ScenarioError
         If its scenario file is not a valid scenario.
     """
     path = Path(folder)
-    if not (path / RESULT_FILES[0]).is_file() and (path / "group0").is_dir():
-        raise FieldError(
-            "folder", f"{str(path)!r} holds a mission with several targets: load each group's "
-            f"folder ({str(path / 'group0')!r}, ...)",
-        )  # fmt: skip
+    if not (path / RESULT_FILES[0]).is_file():
+        _refuse_other_folders(path)
+        parts = sorted(p for p in path.glob("part-*") if (p / RESULT_FILES[3]).is_file())
+        if parts:
+            return _concatenate([load_results(p) for p in parts], path)
     for name in RESULT_FILES:
         if not (path / name).is_file():
             raise FieldError("folder", f"{str(path)!r} holds no saved result ({name} missing)")
@@ -706,6 +718,55 @@ def load_results(folder: str | os.PathLike[str]) -> MissionResult:
     _check_arrays(arrays, scenario, npz)
     arrays["bound"] = float(arrays["bound"])
     return MissionResult(scenario=scenario, **arrays)
+
+
+def _refuse_other_folders(path: Path) -> None:
+    """Name what to load instead when ``path`` holds a mission with several targets, a
+    campaign, or a campaign's positions in the form of older versions."""
+    where = str(path)
+    if (path / "group0").is_dir():
+        raise FieldError(
+            "folder", f"{where!r} holds a mission with several targets: load each group's "
+            f"folder ({str(path / 'group0')!r}, ...)",
+        )  # fmt: skip
+    if (path / "spec.json").is_file() and (path / "runs").is_dir():
+        variants = sorted((path / "trajectories").glob("variant=*"))
+        raise FieldError(
+            "folder", f"{where!r} holds a campaign: load a variant's trajectories "
+            f"({str(variants[0])!r}, ...)" if variants else f"{where!r} holds a campaign run "
+            "without trajectories = true: its runs are metrics only (runs/*.parquet)",
+        )  # fmt: skip
+    if any(path.glob("part-*.npz")):
+        raise FieldError(
+            "folder", f"{where!r} holds a campaign's positions only (part-*.npz, written by "
+            "an older crlbswarm), not results; run the campaign again to save them",
+        )  # fmt: skip
+
+
+def _concatenate(parts: list[MissionResult], path: Path) -> MissionResult:
+    """The runs of several results of one scenario (a campaign variant's tasks), in order."""
+    first = parts[0]
+    for part in parts[1:]:
+        if (
+            part.scenario != first.scenario
+            or part.trajectory_stride != first.trajectory_stride
+            or (part.positions is None) != (first.positions is None)
+        ):
+            raise FieldError(
+                "folder", f"{str(path)!r}: its parts hold different scenarios or arrays; load "
+                "one part folder",
+            )  # fmt: skip
+    arrays: dict[str, Any] = {}
+    for name in _ARRAY_FIELDS:
+        values = [getattr(part, name) for part in parts]
+        if name in ("time", "bound", "trajectory_stride") or values[0] is None:
+            arrays[name] = values[0]
+        elif name == "pcrb":
+            runs = np.array([part.n_runs for part in parts], dtype=float)
+            arrays[name] = np.average(np.stack(values), axis=0, weights=runs)
+        else:
+            arrays[name] = np.concatenate(values)
+    return MissionResult(scenario=first.scenario, **arrays)
 
 
 def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None:
