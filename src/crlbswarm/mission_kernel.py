@@ -316,7 +316,7 @@ class RunOutputs(NamedTuple):
         CRLB of that FIM, eq. (10), m^2 (:func:`crlbswarm.fisher.inverse_figures_at`).
     centroid_error : ndarray, shape (K+1,)
         Distance from the centroid to the formation's centre over the true target, m
-        (:attr:`crlbswarm.MissionResult.centroid_error`).
+        (``MissionResult.centroid_error``).
     """
 
     q: np.ndarray
