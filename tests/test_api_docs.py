@@ -50,6 +50,7 @@ MODULES = [
     "crlbswarm.paper",
     "crlbswarm.replay",
     "crlbswarm.report",
+    "crlbswarm.webpage",
 ]
 
 

@@ -403,3 +403,15 @@ def test_several_targets_from_the_cli_in_the_browser(tmp_path, capsys, browser):
         assert len(page.evaluate("crlbReplay.targetPositions()")) == 2
         assert page.console_errors == []
         assert page.external_requests == []
+
+
+def test_a_page_refuses_code_that_would_end_its_element_early():
+    from crlbswarm.webpage import html_page, json_script
+
+    data = json_script({"text": "</script><b>&"}, "d")
+    assert data.count("</script") == 1 and "<b>" not in data  # escaped inside the JSON
+    html_page("t", "a{}", "", [data, "<script>1</script>"])
+    with pytest.raises(ValueError, match="style"):
+        html_page("t", "a{}</style>", "", [])
+    with pytest.raises(ValueError, match="scripts"):
+        html_page("t", "", "", ["<script>'</script>'</script>"])

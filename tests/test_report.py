@@ -385,7 +385,8 @@ def test_report_data_handles_missing_values_and_the_row_limit(synthetic_campaign
     assert len(rows["seed"]) == 10
     # JSON without NaN, safe in a script element.
     page = report_html(synthetic_campaign)
-    start = page.index('<script id="crlb-data" type="application/json">') + 47
+    opening = '<script type="application/json" id="crlb-data">'
+    start = page.index(opening) + len(opening)
     embedded = json.loads(page[start : page.index("</script>", start)])
     assert embedded["variants"][5]["stats"]["convergence_time_s"]["median"] is None
 

@@ -17,12 +17,9 @@ The page's script and style are package files (``web/replay.js``, ``web/replay.c
 from __future__ import annotations
 
 import base64
-import html
-import json
 import math
 import os
-from collections.abc import Iterable, Sequence
-from importlib import resources
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +29,7 @@ from ._validation import count, positive_scalar
 from .errors import FieldError
 from .output import check_output_file, write_text
 from .results import GroupMissionResult, MissionResult, load_results
+from .webpage import html_page, json_script, package_text
 
 __all__ = [
     "MAX_FRAMES",
@@ -40,11 +38,8 @@ __all__ = [
     "float32_base64",
     "frame_rows",
     "frames_per_run",
-    "html_page",
     "interval_minima",
-    "json_script",
     "load_mission_folder",
-    "package_text",
     "replay_data",
     "replay_html",
     "write_replay",
@@ -71,47 +66,6 @@ RUN_METRICS = (
 
 
 # -- generic pieces of a self-contained page ----------------------------------------------
-def package_text(name: str) -> str:
-    """The text of a file shipped in the package's ``web/`` folder (script, style, markup).
-
-    Parameters
-    ----------
-    name : str
-        File name in ``crlbswarm/web/``, e.g. ``"replay.js"``.
-
-    Returns
-    -------
-    str
-        Its text (UTF-8).
-    """
-    return resources.files(__package__).joinpath("web").joinpath(name).read_text(encoding="utf-8")
-
-
-def json_script(data: Any, element_id: str) -> str:
-    """A ``<script type="application/json">`` element holding ``data``, safe to inline.
-
-    ``<``, ``>`` and ``&`` are written as JSON escapes, so no text in the data can close
-    the element or open a comment; the page reads it back with
-    ``JSON.parse(document.getElementById(element_id).textContent)``.
-
-    Parameters
-    ----------
-    data : object
-        JSON-ready data (no NaN or infinity: they are not JSON).
-    element_id : str
-        The element's ``id``.
-
-    Returns
-    -------
-    str
-        The element.
-    """
-    text = json.dumps(data, separators=(",", ":"), allow_nan=False, ensure_ascii=False)
-    for char, escape in (("<", "\\u003c"), (">", "\\u003e"), ("&", "\\u0026")):
-        text = text.replace(char, escape)
-    return f'<script type="application/json" id="{html.escape(element_id)}">{text}</script>'
-
-
 def float32_base64(values: Any) -> str:
     """An array as base64 of its little-endian float32 bytes, in C order (NaN and
     infinities kept; JavaScript reads it into a ``Float32Array``).
@@ -128,55 +82,6 @@ def float32_base64(values: Any) -> str:
     """
     raw = np.ascontiguousarray(values, dtype="<f4").tobytes()
     return base64.b64encode(raw).decode("ascii")
-
-
-def html_page(title: str, style: str, body: str, scripts: Sequence[str]) -> str:
-    """One self-contained HTML document: inline style and scripts, a policy that forbids
-    loading anything (no network, no file), and an empty icon (no request for one).
-
-    Parameters
-    ----------
-    title : str
-        Plain text of the title (escaped here).
-    style : str
-        CSS.
-    body : str
-        Markup of the body (inserted as is).
-    scripts : sequence of str
-        Elements placed at the end of the body, in order (e.g. a :func:`json_script`, then
-        ``<script>`` with the code).
-
-    Returns
-    -------
-    str
-        The document.
-    """
-    # Nothing from the network or the disk; inline code only ('unsafe-eval' lets test and
-    # automation tools evaluate expressions in the page, e.g. Playwright's wait_for_function).
-    policy = (
-        "default-src 'none'; script-src 'unsafe-inline' 'unsafe-eval'; "
-        "style-src 'unsafe-inline'; img-src data: blob:; connect-src 'none'"
-    )
-    return "\n".join(
-        [
-            "<!DOCTYPE html>",
-            '<html lang="en">',
-            "<head>",
-            '<meta charset="utf-8">',
-            f'<meta http-equiv="Content-Security-Policy" content="{policy}">',
-            '<meta name="viewport" content="width=device-width, initial-scale=1">',
-            '<link rel="icon" href="data:,">',
-            f"<title>{html.escape(title)}</title>",
-            f"<style>\n{style}\n</style>",
-            "</head>",
-            "<body>",
-            body,
-            *scripts,
-            "</body>",
-            "</html>",
-            "",
-        ]
-    )
 
 
 # -- decimation -------------------------------------------------------------------------

@@ -19,14 +19,12 @@ value.
 
 from __future__ import annotations
 
-import html
 import json
 import math
 import os
 import re
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +34,7 @@ from . import __version__, _validation as _v
 from .errors import FieldError, one_line
 from .output import check_output_file, write_text
 from .results import CENTROID_TOL, CRLB_TOL, OUTCOMES, PROGRESS_TOL
+from .webpage import html_page, json_script, package_text
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -123,38 +122,6 @@ _VARIANT_FOLDER = re.compile(r"variant=(\d+)")
 
 
 # -- generic pieces of a self-contained page ------------------------------------------------
-def _web_asset(name: str) -> str:
-    """The text of the package file ``web/<name>`` (a script or style sheet to inline)."""
-    return resources.files(__package__).joinpath("web").joinpath(name).read_text(encoding="utf-8")
-
-
-def _script_json(data: Any) -> str:
-    """``data`` as JSON safe inside a ``<script>`` element: ``<``, ``>`` and ``&`` (which
-    JSON has only inside strings) escaped, so no text of the data can close the element;
-    NaN and infinities refused (they are not JSON: give None)."""
-    text = json.dumps(data, separators=(",", ":"), allow_nan=False)
-    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
-
-
-def _html_document(title: str, css: str, data: Any, js: str) -> str:
-    """A complete HTML page: ``css`` and ``js`` inline, ``data`` in a JSON script element
-    with the id ``crlb-data`` (which ``js`` reads), an empty ``<main id="report">`` for
-    ``js`` to fill, and no reference to anything outside the file."""
-    for name, text, tag in (("css", css, "</style"), ("js", js, "</script")):
-        if tag in text.lower():  # it would end its element early
-            raise ValueError(f"{name}: holds {tag!r}, which cannot be inlined")
-    return (
-        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        '<link rel="icon" href="data:,">\n'
-        f"<title>{html.escape(title)}</title>\n<style>\n{css}</style>\n</head>\n<body>\n"
-        '<main id="report"><noscript>This report is drawn by JavaScript: open it in a web '
-        "browser with JavaScript enabled.</noscript></main>\n"
-        f'<script id="crlb-data" type="application/json">{_script_json(data)}</script>\n'
-        f"<script>\n{js}</script>\n</body>\n</html>\n"
-    )
-
-
 # -- reading a campaign folder ----------------------------------------------------------------
 def _campaign_folder(campaign_dir: str | os.PathLike[str]) -> Path:
     """The folder, checked to hold a campaign (``spec.json`` and ``variants.parquet``)."""
@@ -484,7 +451,14 @@ def report_html(campaign_dir: str | os.PathLike[str], *, max_run_rows: int = MAX
         Naming ``campaign_dir`` if the folder holds no readable campaign.
     """
     data = report_data(campaign_dir, max_run_rows=max_run_rows)
-    return _html_document(data["title"], _web_asset("report.css"), data, _web_asset("report.js"))
+    body = (
+        '<main id="report"><noscript>This report is drawn by JavaScript: open it in a web '
+        "browser with JavaScript enabled.</noscript></main>"
+    )
+    script = f"<script>\n{package_text('report.js')}\n</script>"
+    return html_page(
+        data["title"], package_text("report.css"), body, [json_script(data, "crlb-data"), script]
+    )
 
 
 def write_report(
