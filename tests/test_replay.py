@@ -409,7 +409,8 @@ def test_a_page_refuses_code_that_would_end_its_element_early():
     from crlbswarm.webpage import html_page, json_script
 
     data = json_script({"text": "</script><b>&"}, "d")
-    assert data.count("</script") == 1 and "<b>" not in data  # escaped inside the JSON
+    assert data.count("</script") == 1  # its own end: the data's are escaped
+    assert "<b>" not in data
     html_page("t", "a{}", "", [data, "<script>1</script>"])
     with pytest.raises(ValueError, match="style"):
         html_page("t", "a{}</style>", "", [])
