@@ -1,5 +1,7 @@
 """The fuzzing of ``tests/fuzzing.py``, a short fixed-seed run: scenario files, campaign
-specs, command lines and public functions, under a memory cap, each case within 10 s.
+specs, command lines and public functions, under a memory cap. Here a case may take up to
+60 s (a hang guard, not a speed test: the first case of a kind may compile the simulator
+on a cold cache, on a loaded machine); the on-demand fuzzer's limit is 10 s.
 
 ``CRLBSWARM_FUZZ_CASES`` sets the number of cases (default 320, about a minute);
 ``CRLBSWARM_FUZZ_SEED`` the seed. For a long search run ``python tests/fuzzing.py --cases
@@ -27,6 +29,7 @@ def test_fuzz_family(family: str, tmp_path: Path) -> None:
         [sys.executable, str(HERE / "fuzzing.py"), "--cases", str(cases), "--seed", seed,
          "--family", family],
         capture_output=True, text=True, cwd=tmp_path, timeout=600,
+        env={**os.environ, "CRLBSWARM_FUZZ_CASE_SECONDS": "60"},
     )  # fmt: skip
     lines = proc.stdout.strip().splitlines()
     failures = [json.loads(line) for line in lines[:-1]]
