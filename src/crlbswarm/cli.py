@@ -568,7 +568,8 @@ def _add_fly(sub: Any) -> None:
     _option(fly, fields, "--out", field="out", type=_path, default=None, metavar="DIR",
             help="the recorder's output folder (missing or empty, unless --force)")  # fmt: skip
     _option(fly, fields, "--seed", field="seed", type=int, default=0,
-            help="seed of the run: the starts and draws of simulate --seed (default 0)")  # fmt: skip
+            help="seed of the run: the starts and draws of simulate --seed "
+            "(default 0)")  # fmt: skip
     _option(fly, fields, "--mode", field="mode", default="stepped", choices=MODES,
             help="stepped: a UAV takes the next step when it has its neighbours' states "
             "(reproducible); realtime: steps on the wall clock (default %(default)s)")  # fmt: skip
@@ -617,7 +618,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         raise FieldError("out", "is the recorder's: not used with --uav")
     if args.uav is None and args.out is None:
         raise FieldError("out", "is required (the recorder's output folder)")
-    signal.signal(signal.SIGTERM, _interrupt)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         if args.uav is None and not args.recorder:
             return _fly_launcher(args, scenario)
@@ -641,10 +642,13 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         return 1
     except KeyboardInterrupt:
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _fly_launcher(args: argparse.Namespace, scenario: Any) -> int:
     """``crlbswarm fly SCENARIO --out DIR``: every member, then their statuses."""
+    import json
     import time
 
     from .fly import fly
@@ -658,10 +662,14 @@ def _fly_launcher(args: argparse.Namespace, scenario: Any) -> int:
         print("crlbswarm: interrupted: every process stopped; the recorder kept the steps "
               f"recorded ({args.out / 'fly.json'})", file=sys.stderr)  # fmt: skip
         return 130
-    failed = {name: code for name, code in statuses.items() if code != 0}
+    failed = ", ".join(f"{name} {code}" for name, code in statuses.items() if code != 0)
     print(f"fly: {len(statuses) - 1} UAVs and the recorder, {time.monotonic() - began:.1f} s"
-          + ("" if not failed else "; exit status " + ", ".join(
-              f"{name} {code}" for name, code in failed.items())))  # fmt: skip
+          + (f"; exit status {failed}" if failed else ""))  # fmt: skip
+    record = args.out / "fly.json"
+    if record.is_file():
+        note = json.loads(record.read_text(encoding="utf-8")).get("note")
+        if note:
+            print(f"note: {note}")
     return 1 if failed else 0
 
 

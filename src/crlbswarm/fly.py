@@ -85,6 +85,13 @@ FLY_FILE = "fly.json"
 #: write) before it kills them, s.
 SHUTDOWN_GRACE = 20.0
 
+#: Once the recorder has ended, how long the other members have (beyond the timeout) to
+#: end before the launcher stops them, s.
+LINGER = 5.0
+
+#: The exit status of a member that refused its arguments (the CLI's usage error).
+EXIT_USAGE = 2
+
 #: The recorder's wait for a UAV's log, in timeouts (a UAV may itself wait one timeout
 #: for a neighbour before it logs).
 RECORDER_PATIENCE = 3.0
@@ -164,7 +171,17 @@ class Recorder:
         self.started = self.ended = math.nan
 
     def record(self, k: int, packets: dict[int, Packet]) -> None:
-        """Record step ``k`` from every UAV's log."""
+        """Record step ``k`` from every UAV's log: the states, the leader's eta, distance to
+        go and estimate, and the step's metrics as the kernel computes them
+        (:func:`record_step`, and the cost of the step before).
+
+        Parameters
+        ----------
+        k : int
+            The step (the steps before it are recorded).
+        packets : dict
+            UAV -> its log of step ``k`` (:data:`crlbswarm.flynet.LOG_FIELDS`).
+        """
         run = self.run
         leader = run.leader
         clear = np.empty(run.m_uavs)
@@ -200,7 +217,7 @@ class Recorder:
         for k in range(run.k_steps + 1):
             wanted = [m for m in range(run.m_uavs) if m not in self.lost]
             missing = inbox.wait_step(LOG, k, wanted, patience, names)
-            packets = inbox.take(LOG, k)
+            packets = {p.sender: p for p in inbox.take(LOG, k) if p.step == k}
             for m in sorted(missing):
                 self.lost[m] = k
                 print(f"crlbswarm fly: recorder: no log of UAV {m} for step {k}: "
@@ -216,8 +233,19 @@ class Recorder:
                                                   np.empty(0)))  # fmt: skip
 
     def result(self, why: str) -> MissionResult | None:
-        """The recorded steps as a result (a mission cut to them if the flight ended
-        early), or None if no step after the start was recorded."""
+        """The recorded steps as a result.
+
+        Parameters
+        ----------
+        why : str
+            Why the flight ended, if it ended early (:func:`cut_scenario`).
+
+        Returns
+        -------
+        MissionResult or None
+            One run: the whole mission, or a mission cut to the steps recorded; None if
+            no step after the start was recorded.
+        """
         run = self.run
         steps = self.recorded
         if steps < 1:
@@ -340,7 +368,9 @@ def _save(recorder: Recorder, out: Path, force: bool, interrupted: bool) -> Flig
             print(line, flush=True)
     else:
         out.mkdir(parents=True, exist_ok=True)
-    wall = (recorder.ended if math.isfinite(recorder.ended) else time.monotonic()) - recorder.started
+    wall = (
+        recorder.ended if math.isfinite(recorder.ended) else time.monotonic()
+    ) - recorder.started
     report = FlightReport(
         scenario=run.scenario.name, seed=run.seed, mode=opts.mode, steps=run.k_steps,
         recorded=recorder.recorded, interrupted=interrupted, lost=dict(recorder.lost),
@@ -454,6 +484,22 @@ def _stop(procs: dict[str, subprocess.Popen[bytes]], grace: float) -> None:
             proc.wait()
 
 
+def _wait(procs: dict[str, subprocess.Popen[bytes]], linger: float) -> None:
+    """Wait for the members to end; once the recorder has, the others get ``linger``
+    seconds (a member stopped, or cut off from the others, would never end); a member that
+    refused its arguments (exit status 2) ends the flight at once."""
+    recorder = procs[member_name(None)]
+    deadline = math.inf
+    while any(p.poll() is None for p in procs.values()):
+        if any(p.returncode == EXIT_USAGE for p in procs.values()):
+            return
+        if recorder.returncode is not None and deadline == math.inf:
+            deadline = time.monotonic() + linger
+        if time.monotonic() > deadline:
+            return
+        time.sleep(0.05)
+
+
 def fly(
     scenario: Scenario,
     out: str | os.PathLike[str],
@@ -536,8 +582,7 @@ def fly(
                                   [*endpoints[:i], *options.connect], role)  # fmt: skip
             name = member_name(None if i == 0 else i - 1)
             procs[name] = subprocess.Popen(cmd, start_new_session=True)
-        while any(p.poll() is None for p in procs.values()):
-            time.sleep(0.05)
+        _wait(procs, options.timeout + LINGER)
     except KeyboardInterrupt:
         _stop(procs, SHUTDOWN_GRACE)
         raise

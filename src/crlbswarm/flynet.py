@@ -53,15 +53,16 @@ from .counter_rng import stream_key, uniform_pair
 from .errors import FieldError
 
 __all__ = [
+    "CLOSE_WAIT",
     "DEFAULT_KEY",
     "DEFAULT_TIMEOUT",
     "DONE",
     "FLY_EXTRA",
-    "MAX_DELAY",
-    "MODES",
     "LOG",
     "LOG_FIELDS",
     "LOSS_STREAM",
+    "MAX_DELAY",
+    "MODES",
     "NO_STAMP",
     "RECORDER",
     "START_TIMEOUT",
@@ -110,6 +111,9 @@ DEFAULT_TIMEOUT = 5.0
 #: Largest injected delay, steps.
 MAX_DELAY = 100_000
 
+#: Longest wait for a Zenoh session to close, s (:meth:`Member.close`).
+CLOSE_WAIT = 2.0
+
 #: The stamp of a packet that carries no state.
 NO_STAMP = -1
 
@@ -145,7 +149,6 @@ class ParentGone(RuntimeError):
     """The launcher that started this process has exited."""
 
 
-
 def import_zenoh() -> ModuleType:
     """Zenoh's Python module (the optional package ``eclipse-zenoh``).
 
@@ -175,7 +178,9 @@ def _endpoints(values: Sequence[str], field: str) -> list[str]:
     out = []
     for value in values:
         if not isinstance(value, str) or "/" not in value.strip("/") or " " in value:
-            raise FieldError(field, f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447")
+            raise FieldError(
+                field, f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447"
+            )
         out.append(value)
     return out
 
@@ -345,7 +350,9 @@ class FlightOptions:
             raise FieldError("mode", f"must be one of {', '.join(MODES)}, got {self.mode!r}")
         timeout = float(self.timeout)
         if not (math.isfinite(timeout) and timeout > 0.0):
-            raise FieldError("timeout", f"must be a positive number of seconds, got {self.timeout!r}")
+            raise FieldError(
+                "timeout", f"must be a positive number of seconds, got {self.timeout!r}"
+            )
         loss = float(self.loss)
         if not 0.0 <= loss <= 1.0:
             raise FieldError("loss", f"must be a probability in [0, 1], got {self.loss!r}")
@@ -462,7 +469,10 @@ class Injection:
             ``(stamp, values)`` of the message delivered at this step, or None when none
             is (lost, or the first ``delay`` steps).
         """
-        if self.loss <= 0.0 or uniform_pair(*self.keys, step, self.sender, LOSS_STREAM, 0)[0] >= self.loss:
+        if (
+            self.loss <= 0.0
+            or uniform_pair(*self.keys, step, self.sender, LOSS_STREAM, 0)[0] >= self.loss
+        ):
             self.line[step] = values.copy()
         stamp = step - self.delay
         held = self.line.pop(stamp, None)
@@ -548,9 +558,14 @@ class Member:
         pub.put(encode(packet))
 
     def close(self) -> None:
-        """Close the session (its token disappears for the others)."""
-        if not self.session.is_closed():
-            self.session.close()
+        """Close the session (its token disappears for the others), waiting at most
+        :data:`CLOSE_WAIT` seconds: Zenoh's close can hang on a link to a peer that stopped
+        without closing it (a frozen process), and the member then exits without it."""
+        if self.session.is_closed():
+            return
+        closing = threading.Thread(target=self.session.close, daemon=True)
+        closing.start()
+        closing.join(CLOSE_WAIT)
 
 
 class Inbox:
@@ -613,7 +628,14 @@ class Inbox:
                 self.alive.add(name)
             self.changed.notify_all()
 
-    def _check_parent(self) -> None:
+    def check_parent(self) -> None:
+        """Raise ``ParentGone`` if the launcher that started this process has exited.
+
+        Raises
+        ------
+        ParentGone
+            If the process's parent is no longer ``parent``.
+        """
         if self.parent is not None and os.getppid() != self.parent:
             raise ParentGone(f"the launcher (process {self.parent}) is gone")
 
@@ -645,7 +667,7 @@ class Inbox:
                 if left <= 0.0:
                     return False
                 self.changed.wait(min(left, 0.25))
-                self._check_parent()
+                self.check_parent()
         return True
 
     def wait_step(self, kind: int, step: int, senders: Iterable[int], timeout: float,
@@ -682,9 +704,9 @@ class Inbox:
             got = self.by_step.get((kind, step), {})
             return {s for s in wanted if s not in got}
 
-    def take(self, kind: int, step: int) -> dict[int, Packet]:
-        """The packets of ``kind`` and ``step`` received so far, removed from the inbox
-        with those of earlier steps.
+    def take(self, kind: int, step: int) -> list[Packet]:
+        """The packets of ``kind`` of steps up to ``step`` received so far (a late one
+        too: its state is still the newest its sender sent), removed from the inbox.
 
         Parameters
         ----------
@@ -695,11 +717,9 @@ class Inbox:
 
         Returns
         -------
-        dict
-            Sender -> packet.
+        list of Packet
+            In the order of their steps.
         """
         with self.changed:
-            for key in [key for key in self.by_step if key[0] == kind and key[1] < step]:
-                del self.by_step[key]
-            return self.by_step.pop((kind, step), {})
-
+            keys = sorted(key for key in self.by_step if key[0] == kind and key[1] <= step)
+            return [p for key in keys for p in self.by_step.pop(key).values()]

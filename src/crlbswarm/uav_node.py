@@ -52,11 +52,9 @@ from .estimation import noisy_range
 from .flynet import (
     DONE,
     LOG,
-    LOG_FIELDS,
     NO_STAMP,
     START_TIMEOUT,
     STATE,
-    STATE_FIELDS,
     FlightError,
     FlightOptions,
     Inbox,
@@ -298,7 +296,9 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
             "scenario", f"expected a crlbswarm.Scenario, got {type(scenario).__name__}"
         )
     if scenario.extra_targets:
-        raise FieldError("scenario", "has extra_targets (several targets): fly flies one formation")
+        raise FieldError(
+            "scenario", "has extra_targets (several targets): fly flies one formation"
+        )
     sc, seed = scenario, _v.seed(seed, "seed")
     scene, index, ctl, rule, const = _kernel_arguments(sc)
     start = start_positions(sc, seed)
@@ -435,8 +435,9 @@ def compile_laws(run: FlyRun) -> None:
                            for p in range(n)])  # fmt: skip
         update_into(x, p_cov, q, ranges, run.const.altitude, run.const.snr_constant,
                     FILTER_ITERATIONS, work)  # fmt: skip
-        update_into(x, p_cov, np.ascontiguousarray(q[:2]), np.ascontiguousarray(ranges[:2]),
-                    run.const.altitude, run.const.snr_constant, FILTER_ITERATIONS, work)  # fmt: skip
+        two, r2 = np.ascontiguousarray(q[:2]), np.ascontiguousarray(ranges[:2])  # (a subset)
+        update_into(x, p_cov, two, r2, run.const.altitude, run.const.snr_constant,
+                    FILTER_ITERATIONS, work)  # fmt: skip
         predict_into(x, p_cov, run.scene.f_mat, run.scene.q_mat, work)
 
 
@@ -497,13 +498,15 @@ class UavProcess:
         self.a_work, self.b_work = np.empty((rows, 2)), np.empty(rows)
         self.part = np.zeros((1, 8))
         self.eta, self.vref = 1.0, np.zeros(2)
-        self.ranges = np.full(n, np.nan)  # each UAV's last range, and the step of it
-        self.range_step = np.full(n, -1, dtype=np.int64)
+        # each UAV's last range, where it was measured, and whether it is fused yet
+        self.ranges, self.range_q = np.full(n, np.nan), run.start.copy()
+        self.unfused = np.zeros(n, dtype=bool)
         self.stamps = np.zeros(n, dtype=np.int64)  # the step of each UAV's state held
         self.senders = run.senders(m)
         self.names = {p: member_name(p) for p in range(n)}
         self.lost: set[int] = set()
-        self.late = 0
+        self.late = 0  # steps it went on without a state it waited for
+        self.warned: set[int] = set()
         self.injection = Injection(run.seed, m, options.loss, options.delay)
         if self.is_leader:
             self.out = _leader_outputs(run.k_steps)
@@ -512,7 +515,7 @@ class UavProcess:
             self.node = -1
 
     # -- messages ----------------------------------------------------------------------
-    def send_state(self, k: int, measured: float) -> None:
+    def _send_state(self, k: int, measured: float) -> None:
         """Send the swarm state of step ``k`` through the injected loss and delay."""
         m = self.m
         eta = self.eta if self.is_leader else math.nan
@@ -522,7 +525,7 @@ class UavProcess:
         stamp, carried = (NO_STAMP, np.empty(0)) if sent is None else sent
         self.member.publish(state_key(self.member.key, m), Packet(STATE, m, k, stamp, carried))
 
-    def absorb(self, packet: Packet) -> None:
+    def _absorb(self, packet: Packet) -> None:
         """Take a neighbour's state (if newer than the one held)."""
         p, values = packet.sender, packet.values
         if packet.stamp == NO_STAMP or packet.stamp < self.stamps[p] or p == self.m:
@@ -534,10 +537,9 @@ class UavProcess:
             self.eta = float(values[4])
             self.vref[:] = values[2:4]
         if not math.isnan(values[5]):
-            self.ranges[p] = values[5]
-            self.range_step[p] = packet.stamp
+            self.ranges[p], self.range_q[p], self.unfused[p] = values[5], values[0:2], True
 
-    def receive(self, k: int) -> None:
+    def _receive(self, k: int) -> None:
         """Stepped: wait for the senders' states of step ``k`` (at most the timeout) and take
         them; real time: take the newest state of each sender."""
         inbox = self.member.inbox
@@ -545,22 +547,31 @@ class UavProcess:
             for p in self.senders:
                 packet = inbox.latest.get((STATE, p))
                 if packet is not None:
-                    self.absorb(packet)
+                    self._absorb(packet)
             return
         wanted = [p for p in self.senders if p not in self.lost]
-        missing = inbox.wait_step(STATE, k, wanted, self.options.timeout, self.names)
-        for packet in inbox.take(STATE, k).values():
-            self.absorb(packet)
+        timeout = self.options.timeout
+        missing = inbox.wait_step(STATE, k, wanted, timeout, self.names)
+        leader = self.run.leader
+        if leader in missing:  # (the leader may itself have waited a timeout for a follower)
+            missing = (missing - {leader}) | inbox.wait_step(
+                STATE, k, [leader], timeout, self.names
+            )
+        for packet in inbox.take(STATE, k):
+            self._absorb(packet)
         for p in sorted(missing):
             if self.names[p] in inbox.gone:
                 self.lost.add(p)
                 _say(f"uav {self.m}: UAV {p} is gone (step {k}); holding its last state")
-            else:
-                self.late += 1
-                _say(f"uav {self.m}: no state of UAV {p} for step {k} within "
-                     f"{self.options.timeout:g} s; using the one of step {self.stamps[p]}")  # fmt: skip
+                continue
+            self.late += 1
+            if p not in self.warned:  # (said once; fly.json counts them)
+                self.warned.add(p)
+                _say(f"uav {self.m}: no state of UAV {p} for step {k} within {timeout:g} s; "
+                     f"going on with the one of step {self.stamps[p]} (and so on whenever "
+                     "it is late: fly.json counts the steps)")  # fmt: skip
 
-    def send_log(self, k: int, extra: tuple[float, ...]) -> None:
+    def _send_log(self, k: int, extra: tuple[float, ...]) -> None:
         """Send the true state of step ``k`` (and the leader's metrics) to the recorder."""
         m = self.m
         values = np.array([self.q[m, 0], self.q[m, 1], self.v[m, 0], self.v[m, 1],
@@ -568,17 +579,17 @@ class UavProcess:
         self.member.publish(log_key(self.member.key, m), Packet(LOG, m, k, k, values))
 
     # -- the step ----------------------------------------------------------------------
-    def measure(self, k: int) -> float:
+    def _measure(self, k: int) -> float:
         """The range measured at step ``k`` with sensing in the loop (NaN at other steps)."""
         run, m = self.run, self.m
         if run.track is None or k % run.const.measure_every:
             return math.nan
         r = measured_range(k, m, self.q[m, 0], self.q[m, 1], run.target[k, 0],
                            run.target[k, 1], run.keys, run.const)  # fmt: skip
-        self.ranges[m], self.range_step[m] = r, k
+        self.ranges[m], self.range_q[m], self.unfused[m] = r, self.q[m], True
         return float(r)
 
-    def move(self, k: int) -> None:
+    def _move(self, k: int) -> None:
         """Step 2 for this UAV (``uav_move``), then its state of step ``k + 1``."""
         run, m = self.run, self.m
         ok = uav_move(k, m, self.q, self.q_next, self.v, self.v_next, run.delta, self.eta,
@@ -588,61 +599,67 @@ class UavProcess:
         if not ok:
             raise FlightError(f"uav {m}: its position ran away at step {k + 1}")
 
-    def advance(self) -> None:
+    def _advance(self) -> None:
         """Take the state of the next step."""
         m = self.m
         self.q[m] = self.q_next[m]
         self.v[m] = self.v_next[m]
 
-    def follower_step(self, k: int) -> None:
+    def _follower_step(self, k: int) -> None:
         """A follower's step ``k``: send, receive, move, log."""
-        self.send_state(k, self.measure(k))
-        self.receive(k)
+        self._send_state(k, self._measure(k))
+        self._receive(k)
         if k < self.run.k_steps:
-            self.move(k)
+            self._move(k)
         else:
             uav_clearance(self.m, self.q, self.rep, self.clear, self.run.scene, self.run.index,
                           self.run.ctl)  # fmt: skip
         nan = math.nan
-        self.send_log(k, (nan,) * 5)
+        self._send_log(k, (nan,) * 5)
 
-    def fuse(self, k: int) -> tuple[float, float, float, float]:
+    def _fuse(self, k: int) -> tuple[float, float, float, float]:
         """The leader's goal: the filter's estimate after fusing the ranges measured at step
         ``k`` (sensing in the loop), or the true target; with its velocity."""
         run = self.run
         if run.track is None:
-            return (float(run.target[k, 0]), float(run.target[k, 1]),
-                    float(run.target_velocity[k, 0]), float(run.target_velocity[k, 1]))  # fmt: skip
-        if k % run.const.measure_every == 0:
-            rows = np.flatnonzero(self.range_step == k)
-            q = self.q if rows.size == run.m_uavs else np.ascontiguousarray(self.q[rows])
-            r = self.ranges if rows.size == run.m_uavs else np.ascontiguousarray(self.ranges[rows])
+            tx, ty = run.target[k]
+            tvx, tvy = run.target_velocity[k]
+            return float(tx), float(ty), float(tvx), float(tvy)
+        rows = np.flatnonzero(self.unfused)
+        if k % run.const.measure_every == 0 and rows.size:  # each range fused once
+            q, r = self.range_q, self.ranges
+            if rows.size < run.m_uavs:
+                q, r = np.ascontiguousarray(q[rows]), np.ascontiguousarray(r[rows])
             update_into(self.x, self.p_cov, q, r, run.const.altitude, run.const.snr_constant,
                         FILTER_ITERATIONS, self.f_work)  # fmt: skip
+            self.unfused[:] = False
         moving = self.x.shape[0] == 4
         return (float(self.x[0]), float(self.x[1]), float(self.x[2]) if moving else 0.0,
                 float(self.x[3]) if moving else 0.0)  # fmt: skip
 
-    def leader_step(self, k: int) -> None:
+    def _leader_step(self, k: int) -> None:
         """The leader's step ``k``: receive, centroid and reference, send, move, eta, log."""
         run = self.run
-        measured = self.measure(k)
-        self.receive(k)
-        sx, sy, tvx, tvy = self.fuse(k)
-        self.out.eta[k] = self.eta
+        measured = self._measure(k)
+        self._receive(k)
+        sx, sy, tvx, tvy = self._fuse(k)
         cx, cy, sx, sy, eta, self.node = leader_reference(
             k, self.q, self.v, self.vref, run.delta, run.target[k, 0], run.target[k, 1], sx,
             sy, tvx, tvy, self.eta, self.node, self.part, run.scene, run.index, run.ctl,
             run.rule, run.const, self.out, run.route,
         )  # fmt: skip
         self.eta = float(eta)
-        self.send_state(k, measured)
+        self._send_state(k, measured)
         estimate = (math.nan,) * 3
         if run.track is not None:
-            estimate = (float(self.x[0]), float(self.x[1]), float(self.p_cov[0, 0] + self.p_cov[1, 1]))
+            estimate = (
+                float(self.x[0]),
+                float(self.x[1]),
+                float(self.p_cov[0, 0] + self.p_cov[1, 1]),
+            )
         extra = (self.eta, float(self.out.distance_to_go[k]), *estimate)
         if k < run.k_steps:
-            self.move(k)
+            self._move(k)
             next_value = next_eta(cx, cy, sx, sy, self.eta, self.node, run.scene.rects,
                                   run.scene.circles, run.index, run.scene, run.rule, run.const,
                                   run.route)  # fmt: skip
@@ -650,7 +667,7 @@ class UavProcess:
                 predict_into(self.x, self.p_cov, run.scene.f_mat, run.scene.q_mat, self.f_work)
         else:
             uav_clearance(self.m, self.q, self.rep, self.clear, run.scene, run.index, run.ctl)
-        self.send_log(k, extra)
+        self._send_log(k, extra)
         if k < run.k_steps:
             self.eta = float(next_value)
 
@@ -661,14 +678,17 @@ class UavProcess:
         dt = run.const.dt
         start = time.monotonic()
         for k in range(run.k_steps + 1):
-            if realtime:
-                time.sleep(max(0.0, start + k * dt - time.monotonic()))
+            if realtime:  # (a step that starts over a step late counts as late)
+                self.member.inbox.check_parent()
+                behind = time.monotonic() - (start + k * dt)
+                self.late += int(behind > dt)
+                time.sleep(max(0.0, -behind))
             if self.is_leader:
-                self.leader_step(k)
+                self._leader_step(k)
             else:
-                self.follower_step(k)
+                self._follower_step(k)
             if k < run.k_steps:
-                self.advance()
+                self._advance()
         inbox = self.member.inbox
         inbox.wait(lambda: (DONE, run.k_steps) in inbox.by_step, self.options.timeout)
 
@@ -709,7 +729,9 @@ def run_uav(run: FlyRun, m: int, options: FlightOptions) -> int:
     member = Member(options.key, member_name(m), options.listen, options.connect, inbox)
     try:
         uav = UavProcess(run, m, options, member)
-        member.subscribe([state_key(options.key, p) for p in uav.senders] + [done_key(options.key)])
+        member.subscribe(
+            [state_key(options.key, p) for p in uav.senders] + [done_key(options.key)]
+        )
         member.announce()
         wait_for_members(member, run)
         uav.fly()
