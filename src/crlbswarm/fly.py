@@ -357,27 +357,28 @@ class FlightReport:
 
 
 def _save(recorder: Recorder, out: Path, force: bool, interrupted: bool) -> FlightReport:
-    """Write the recorded result (if any step was) and ``fly.json``."""
+    """Write the recorded result (if a step after the start was recorded) and ``fly.json``
+    (if the flight started: nothing is written for a flight that never did)."""
     run, opts = recorder.run, recorder.options
-    why = "interrupted" if interrupted else f"UAV {min(recorder.lost, default=0)} lost"
-    result = recorder.result(why)
-    files: list[str] = []
-    if result is not None:
-        files = [str(p) for p in result.save(out, overwrite=force)]
-        for line in outcome_report(result):
-            print(line, flush=True)
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-    wall = (
-        recorder.ended if math.isfinite(recorder.ended) else time.monotonic()
-    ) - recorder.started
+    lost = f"UAV {min(recorder.lost)} lost" if recorder.lost else "stopped"
+    result = recorder.result("interrupted" if interrupted else lost)
+    started = math.isfinite(recorder.started)
+    ended = recorder.ended if math.isfinite(recorder.ended) else time.monotonic()
     report = FlightReport(
         scenario=run.scenario.name, seed=run.seed, mode=opts.mode, steps=run.k_steps,
         recorded=recorder.recorded, interrupted=interrupted, lost=dict(recorder.lost),
         late=[int(x) for x in recorder.late], timeout_s=float(opts.timeout),
         loss=float(opts.loss), delay_steps=int(opts.delay),
-        wall_time_s=float(wall) if math.isfinite(wall) else 0.0, files=files,
+        wall_time_s=float(ended - recorder.started) if started else 0.0,
     )  # fmt: skip
+    if not started:
+        return report
+    if result is not None:
+        report.files = [str(p) for p in result.save(out, overwrite=force)]
+        for line in outcome_report(result):
+            print(line, flush=True)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
     write_json(out / FLY_FILE, report.to_dict())
     report.files.append(str(out / FLY_FILE))
     for path in report.files:

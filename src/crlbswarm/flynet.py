@@ -36,7 +36,6 @@ delivered ``delay`` steps later. Zenoh is imported only when a session opens
 from __future__ import annotations
 
 import json
-import math
 import os
 import struct
 import threading
@@ -134,6 +133,7 @@ LOG_FIELDS = (
     "estimate_variance", "late",
 )  # fmt: skip
 
+_RETRY = {"period_init_ms": 100, "period_max_ms": 500, "period_increase_factor": 2}
 _MAGIC = b"CS"
 _VERSION = 1
 _HEADER = struct.Struct("<2sBBIIi")  # magic, version, kind, sender, step, stamp
@@ -209,13 +209,15 @@ def session_config(listen: Sequence[str], connect: Sequence[str]) -> Any:
     """
     zenoh = import_zenoh()
     config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("listen/endpoints", json.dumps(_endpoints(listen, "listen")))
-    config.insert_json5("connect/endpoints", json.dumps(_endpoints(connect, "connect")))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5(
-        "connect/retry", "{period_init_ms: 100, period_max_ms: 500, period_increase_factor: 2}"
-    )
+    listen, connect = _endpoints(listen, "listen"), _endpoints(connect, "connect")
+    try:
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("listen/endpoints", json.dumps(listen))
+        config.insert_json5("connect/endpoints", json.dumps(connect))
+        config.insert_json5("scouting/multicast/enabled", "false")
+        config.insert_json5("connect/retry", json.dumps(_RETRY))
+    except zenoh.ZError as exc:  # (an endpoint Zenoh does not take)
+        raise FieldError("listen", f"Zenoh refused the endpoints: {exc}") from None
     return config
 
 
@@ -321,8 +323,9 @@ class FlightOptions:
         ``stepped`` or ``realtime`` (:data:`MODES`).
     timeout : float, default DEFAULT_TIMEOUT
         Stepped mode: how long a UAV waits for a state of the step before it goes on
-        with the last it holds, s; the recorder waits three times as long for a UAV's log
-        before it ends the recording.
+        with the last it holds, s (a follower waits twice as long for the leader's, which
+        may itself wait a timeout for a follower); the recorder waits three times as long
+        for a UAV's log before it ends the recording.
     loss : float, default 0
         Probability that a swarm message is lost (injected at the sender).
     delay : int, default 0
@@ -348,14 +351,10 @@ class FlightOptions:
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise FieldError("mode", f"must be one of {', '.join(MODES)}, got {self.mode!r}")
-        timeout = float(self.timeout)
-        if not (math.isfinite(timeout) and timeout > 0.0):
-            raise FieldError(
-                "timeout", f"must be a positive number of seconds, got {self.timeout!r}"
-            )
-        loss = float(self.loss)
+        _v.positive_scalar(self.timeout, "timeout")
+        loss = _v.scalar(self.loss, "loss")
         if not 0.0 <= loss <= 1.0:
-            raise FieldError("loss", f"must be a probability in [0, 1], got {self.loss!r}")
+            raise FieldError("loss", f"must be a probability in [0, 1], got {loss:g}")
         _v.count(self.delay, "delay", 0, MAX_DELAY)
         if not self.key or any(c in self.key for c in "*$?# ") or self.key.strip("/") != self.key:
             raise FieldError(
@@ -508,8 +507,9 @@ class Member:
         self.key = key
         self.name = name
         self.inbox = inbox
+        config = session_config(listen, connect)
         try:
-            self.session = zenoh.open(session_config(listen, connect))
+            self.session = zenoh.open(config)
         except zenoh.ZError as exc:
             raise FieldError("listen", f"cannot open the Zenoh session: {exc}") from None
         self._zenoh = zenoh
