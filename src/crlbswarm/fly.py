@@ -417,6 +417,7 @@ def run_recorder(run: FlyRun, out: str | os.PathLike[str], options: FlightOption
     """
     out = Path(out)
     check_output_folder(out, "out", new=True, overwrite=force)
+    _compile_recorder(run)  # (before it joins)
     inbox = Inbox(options.parent)
     member = Member(options.key, member_name(None), options.listen, options.connect, inbox)
     recorder = Recorder(run, options, member)

@@ -725,6 +725,7 @@ def run_uav(run: FlyRun, m: int, options: FlightOptions) -> int:
         the UAV's position runs away.
     """
     m = _v.count(m, "uav", 0, run.m_uavs - 1)
+    compile_laws(run)  # (before it joins: a first step that compiles would hold up the others)
     inbox = Inbox(options.parent, stepped=options.mode == "stepped")
     member = Member(options.key, member_name(m), options.listen, options.connect, inbox)
     try:
