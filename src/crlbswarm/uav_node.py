@@ -713,7 +713,8 @@ def run_uav(run: FlyRun, m: int, options: FlightOptions) -> int:
     Returns
     -------
     int
-        The steps at which it went on without a state it waited for (stepped mode).
+        Its late steps: stepped, the steps at which it went on without a state it waited
+        for; real time, the steps it started over a step behind the wall clock.
 
     Raises
     ------
