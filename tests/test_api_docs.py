@@ -51,6 +51,9 @@ MODULES = [
     "crlbswarm.replay",
     "crlbswarm.report",
     "crlbswarm.webpage",
+    "crlbswarm.flynet",
+    "crlbswarm.uav_node",
+    "crlbswarm.fly",
 ]
 
 

@@ -1,5 +1,5 @@
-"""Command-line interface: ``crlbswarm COMMAND`` (animate, design, figures, plot, replay,
-report, scenario, simulate, sweep).
+"""Command-line interface: ``crlbswarm COMMAND`` (animate, design, figures, fly, plot,
+replay, report, scenario, simulate, sweep).
 
 The CLI only parses, calls the library and prints. Errors the user can cause (bad numbers,
 impossible parameters, an unwritable output folder) are :class:`~crlbswarm.errors.FieldError`
@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_report(sub)
     _add_plot(sub)
     _add_animate(sub)
+    _add_fly(sub)
     return parser
 
 
@@ -545,6 +546,131 @@ def _cmd_animate(args: argparse.Namespace) -> int:
                              overwrite=args.force)  # fmt: skip
     print(f"wrote {args.out} ({frames} frames, {frames / args.fps:.1f} s at {args.fps} fps)")
     return 0
+
+
+# -- fly: one process per UAV over Zenoh ---------------------------------------------------
+def _add_fly(sub: Any) -> None:
+    from .flynet import DEFAULT_TIMEOUT, MODES
+
+    fly, fields = _command(
+        sub,
+        "fly",
+        _cmd_fly,
+        help="fly a scenario as one process per UAV over Zenoh, with a recorder",
+        description="Start one process per UAV and a recorder, talking over Zenoh (peer mode, "
+        "endpoints on 127.0.0.1, no multicast); each UAV runs the mission kernel's laws on "
+        "the states it receives. The recorder writes the same folder as simulate, plus "
+        "fly.json. With --uav I or --recorder, run only that member in this process (start "
+        "them by hand, on different machines, with --connect and --listen). Needs the "
+        "optional package eclipse-zenoh: pip install 'crlbswarm[fly]' (docs/fly.md).",
+    )
+    fly.add_argument("scenario", metavar="SCENARIO", help=_BUILTIN_HELP)
+    _option(fly, fields, "--out", field="out", type=_path, default=None, metavar="DIR",
+            help="the recorder's output folder (missing or empty, unless --force)")  # fmt: skip
+    _option(fly, fields, "--seed", field="seed", type=int, default=0,
+            help="seed of the run: the starts and draws of simulate --seed "
+            "(default 0)")  # fmt: skip
+    _option(fly, fields, "--mode", field="mode", default="stepped", choices=MODES,
+            help="stepped: a UAV takes the next step when it has its neighbours' states "
+            "(reproducible); realtime: steps on the wall clock (default %(default)s)")  # fmt: skip
+    _option(fly, fields, "--timeout", field="timeout", type=float, default=DEFAULT_TIMEOUT,
+            metavar="SEC", help="stepped mode: longest wait for a state before a UAV goes on "
+            "with the last it holds (default %(default)s)")  # fmt: skip
+    _option(fly, fields, "--loss", field="loss", type=float, default=0.0, metavar="P",
+            help="probability that a swarm message is lost, injected at the sender "
+            "(default 0)")  # fmt: skip
+    _option(fly, fields, "--delay", field="delay", type=int, default=0, metavar="STEPS",
+            help="steps a swarm message is held back at the sender (default 0)")  # fmt: skip
+    fly.add_argument("--force", action="store_true",
+                     help="write into DIR even if it holds files")  # fmt: skip
+    role = fly.add_argument_group("one member by hand").add_mutually_exclusive_group()
+    _option(role, fields, "--uav", field="uav", type=int, default=None, metavar="I",
+            help="run only UAV I in this process")  # fmt: skip
+    role.add_argument("--recorder", action="store_true",
+                      help="run only the recorder in this process (needs --out)")  # fmt: skip
+    _option(fly, fields, "--listen", field="listen", action="append", default=None,
+            metavar="ENDPOINT", help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 "
+            "(a member: default any free port of 127.0.0.1; the launcher: once per member, "
+            "the recorder's first, default free ports of 127.0.0.1)")  # fmt: skip
+    _option(fly, fields, "--connect", field="connect", action="append", default=None,
+            metavar="ENDPOINT", help="Zenoh endpoint of another member to connect to "
+            "(repeat for more)")  # fmt: skip
+    _option(fly, fields, "--key", field="key", default=None, metavar="PREFIX",
+            help="the flight's key prefix, the same for every member (by hand: default "
+            "crlbswarm/fly; the launcher: one per flight)")  # fmt: skip
+    fly.add_argument("--parent", type=int, default=None, help=argparse.SUPPRESS)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    """SIGTERM: stop as Ctrl-C does (a member of a flight writes or closes, then exits)."""
+    raise KeyboardInterrupt
+
+
+def _cmd_fly(args: argparse.Namespace) -> int:
+    import signal
+
+    from .flynet import DEFAULT_KEY, FlightError, FlightOptions, ParentGone, import_zenoh
+    from .scenario import load_scenario
+
+    import_zenoh()
+    scenario = load_scenario(args.scenario)
+    if args.uav is not None and args.out is not None:
+        raise FieldError("out", "is the recorder's: not used with --uav")
+    if args.uav is None and args.out is None:
+        raise FieldError("out", "is required (the recorder's output folder)")
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        if args.uav is None and not args.recorder:
+            return _fly_launcher(args, scenario)
+        from .fly import run_recorder
+        from .uav_node import fly_run, run_uav
+
+        options = FlightOptions(
+            key=args.key or DEFAULT_KEY, listen=tuple(args.listen or ["tcp/127.0.0.1:0"]),
+            connect=tuple(args.connect or ()), mode=args.mode, timeout=args.timeout,
+            loss=args.loss, delay=args.delay, parent=args.parent,
+        )  # fmt: skip
+        run = fly_run(scenario, args.seed)
+        if args.recorder:
+            report = run_recorder(run, args.out, options, args.force)
+            return 130 if report.interrupted else 0 if report.complete else 1
+        run_uav(run, args.uav, options)
+        return 0
+    except FlightError as exc:
+        return _fail(str(exc), 1)
+    except ParentGone:
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _fly_launcher(args: argparse.Namespace, scenario: Any) -> int:
+    """``crlbswarm fly SCENARIO --out DIR``: every member, then their statuses."""
+    import json
+    import time
+
+    from .fly import fly
+
+    began = time.monotonic()
+    try:
+        statuses = fly(scenario, args.out, seed=args.seed, mode=args.mode, timeout=args.timeout,
+                       loss=args.loss, delay=args.delay, force=args.force, key=args.key,
+                       listen=args.listen, connect=args.connect or ())  # fmt: skip
+    except KeyboardInterrupt:
+        print("crlbswarm: interrupted: every process stopped; the recorder kept the steps "
+              f"recorded ({args.out / 'fly.json'})", file=sys.stderr)  # fmt: skip
+        return 130
+    failed = ", ".join(f"{name} {code}" for name, code in statuses.items() if code != 0)
+    print(f"fly: {len(statuses) - 1} UAVs and the recorder, {time.monotonic() - began:.1f} s"
+          + (f"; exit status {failed}" if failed else ""))  # fmt: skip
+    record = args.out / "fly.json"
+    if record.is_file():
+        note = json.loads(record.read_text(encoding="utf-8")).get("note")
+        if note:
+            print(f"note: {note}")
+    return 1 if failed else 0
 
 
 # -- commands ------------------------------------------------------------------------------
