@@ -13,8 +13,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from crlbswarm import FieldError, load_scenario, simulate
-from crlbswarm.animation import animate_mission, frame_steps
+from crlbswarm import FieldError, load_results, load_scenario, simulate
+from crlbswarm.animation import (
+    DEFAULT_MAX_FRAMES,
+    GIF_MAX_PIXELS,
+    animate_mission,
+    frame_size,
+    frame_steps,
+)
 from crlbswarm.cli import main
 from crlbswarm.scenario import Scenario
 
@@ -163,3 +169,35 @@ def test_refusals_of_the_file_and_of_a_result_without_trajectories(folder, tmp_p
     with pytest.raises(FieldError, match="has no trajectories"):
         animate_mission(bare, tmp_path / "x.gif")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.gif"]
+
+
+def test_a_gif_too_large_for_memory_is_refused_before_drawing(folder, tmp_path, capsys):
+    """68 frames of 4800 pixels wide (600 dpi) are more pixels than a GIF may hold: one line
+    naming --max-frames and --dpi, before anything is drawn or written."""
+    status, _, err = animate(capsys, str(folder), "-o", str(tmp_path / "m.gif"), "--dpi", "600",
+                             "--max-frames", "1000")  # fmt: skip
+    assert status == 2
+    assert len(err) == 1
+    assert err[0].startswith("crlbswarm: error: --max-frames: a GIF of 68 frames of 4800 x ")
+    assert "--dpi" in err[0]
+    assert list(tmp_path.iterdir()) == []
+    width, height = frame_size(load_results(folder), 0, 600)
+    assert 68 * width * height > GIF_MAX_PIXELS
+    # The defaults fit whatever the scene: 300 frames of at most 800 x 1120 pixels.
+    assert DEFAULT_MAX_FRAMES * 800 * 1120 <= GIF_MAX_PIXELS
+
+
+def test_a_gif_plays_at_most_50_fps_and_says_the_rate_it_plays(folder, tmp_path, capsys):
+    path = tmp_path / "m.gif"
+    status, _, err = animate(capsys, str(folder), "-o", str(path), "--fps", "60")
+    assert status == 2
+    assert err[0].startswith("crlbswarm: error: --fps: a GIF plays at most 50 frames per second")
+    assert list(tmp_path.iterdir()) == []
+    # 30 fps: delays of round(100 / 30) = 3 hundredths, so 33.3 fps, as the command says.
+    status, out, err = animate(capsys, str(folder), "-o", str(path), "--fps", "30",
+                               "--dpi", "20", "--max-frames", "3")  # fmt: skip
+    assert status == 0, err
+    assert out == [f"wrote {path} (3 frames, 0.1 s at 33.3 fps)"]
+    with Image.open(path) as gif:
+        gif.seek(1)
+        assert gif.info["duration"] == 30

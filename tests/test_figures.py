@@ -29,10 +29,10 @@ from crlbswarm import (
     random_disc_formations,
     simulate,
 )
+from crlbswarm.geometry import outline_order
 from crlbswarm.plots import (
     SNAPSHOT_GID,
     mission_snapshot_steps,
-    outline_order,
     plot_crlb_vs_altitude,
     plot_estimation_timeseries,
     plot_estimator_vs_altitude,
@@ -297,11 +297,13 @@ def test_every_labelled_curve_is_in_a_legend(all_figures, name):
     assert texts or not any(ax.get_legend_handles_labels()[1] for ax in fig.axes)
 
 
-def test_fig4_legend_covers_both_axes_and_the_dotted_line(all_figures):
+def test_fig4_legend_covers_both_axes_and_the_dotted_line(all_figures, paper):
     fig = all_figures["fig4"]
     eta_ax = fig.axes[2]
     twin = [ax for ax in fig.axes if ax is not eta_ax and ax.bbox.bounds == eta_ax.bbox.bounds]
     assert len(twin) == 1
+    clearance = [ln for ln in twin[0].lines if ln.get_linestyle() == "-"]
+    np.testing.assert_array_equal(clearance[0].get_ydata(), paper.clearance[0])  # not clipped
     texts = legend_texts(fig)
     dotted = [ln for ln in twin[0].lines if ln.get_linestyle() == ":"]
     assert dotted

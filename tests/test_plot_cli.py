@@ -16,7 +16,8 @@ from PIL import Image
 
 from crlbswarm import FieldError, load_results, load_scenario
 from crlbswarm.cli import main
-from crlbswarm.plots import plot_batch_metrics
+from crlbswarm.plots import plot_batch_metrics, plot_mission_trajectories
+from crlbswarm.replay import load_mission_folder
 from crlbswarm.scenario import Scenario
 
 DPI = ["--dpi", "30"]  # small images: the test is about which files, not how they look
@@ -129,21 +130,75 @@ def test_plot_refuses_a_run_out_of_range_and_writes_nothing(runs, tmp_path, caps
     assert (status, len(err), out.exists()) == (2, 1, False)
 
 
-def test_plot_names_what_to_load_for_other_folders(runs, tmp_path, capsys):
-    status, _, err = plot(capsys, str(runs["groups"]), "--out", str(tmp_path / "x"))
-    assert status == 2
-    assert len(err) == 1
-    assert "several targets: load each group's folder" in err[0]
-    assert "group0" in err[0]
-    status, _, err = plot(capsys, str(tmp_path), "--out", str(tmp_path / "x"))
-    assert status == 2
-    assert err[0].startswith("crlbswarm: error: RUNS_DIR: ")
-    assert not (tmp_path / "x").exists()
+def test_plot_draws_each_group_of_several_targets(runs, tmp_path, capsys):
+    """The top folder of a mission with several targets: each group's figures, its UAVs
+    named by their indices in the swarm (1-based, as every legend)."""
+    out = tmp_path / "x"
+    status, _, err = plot(capsys, str(runs["groups"]), "--out", str(out), *DPI)
+    assert status == 0, err
+    names = ("run0_trajectories", "run0_timeseries", "metrics")
+    assert_images(out, {f"group{g}_{name}.png" for g in (0, 1) for name in names})
+    grouped = load_mission_folder(runs["groups"])
+    for group, members in zip(grouped.groups, grouped.plan.members, strict=True):
+        fig = plot_mission_trajectories(group, uavs=members)
+        labels = [
+            t.get_text() for t in fig.legends[0].get_texts() if t.get_text().startswith("UAV")
+        ]
+        leader = int(members[group.scenario.uavs.leader])
+        assert labels == [f"UAV {u + 1}" + (" (leader)" if u == leader else "") for u in members]
     # Each group's folder is a result of its own.
     status, _, err = plot(capsys, str(runs["groups"] / "group1"), "--out", str(tmp_path / "g"),
                           *DPI)  # fmt: skip
     assert status == 0, err
     assert "run0_trajectories.png" in written(tmp_path / "g")
+
+
+def test_animate_writes_one_file_per_group_of_several_targets(runs, tmp_path, capsys):
+    """With several targets, FILE_group<g>.gif for each group; all checked first: an existing
+    file of the second group refuses the command before the first is written."""
+    argv = ["animate", str(runs["groups"]), "-o", str(tmp_path / "m.gif"), "--dpi", "20",
+            "--max-frames", "3"]  # fmt: skip
+    (tmp_path / "m_group1.gif").write_bytes(b"keep")
+    capsys.readouterr()
+    assert main(argv) == 2
+    assert "m_group1.gif' already exists" in capsys.readouterr().err
+    assert written(tmp_path) == {"m_group1.gif"}
+    assert main([*argv, "--force"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == [f"wrote {tmp_path / f'm_group{g}.gif'} (3 frames, 0.1 s at 20 fps)"
+                   for g in (0, 1)]  # fmt: skip
+    for g in (0, 1):
+        with Image.open(tmp_path / f"m_group{g}.gif") as gif:
+            assert gif.n_frames == 3
+
+
+@pytest.mark.parametrize("command", ["plot", "animate", "replay"])
+def test_a_missing_or_wrong_folder_is_one_line_and_nothing_is_made(tmp_path, capsys, command):
+    out = ["-o", str(tmp_path / "a.html" if command == "replay" else tmp_path / "a.gif")]
+    if command == "plot":
+        out = ["--out", str(tmp_path / "x")]
+    missing = tmp_path / "nowhere"
+    capsys.readouterr()
+    assert main([command, str(missing), *out]) == 2
+    assert (
+        capsys.readouterr().err == f"crlbswarm: error: RUNS_DIR: {str(missing)!r} does not exist\n"
+    )
+    assert main([command, str(tmp_path), *out]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("crlbswarm: error: RUNS_DIR: ")
+    assert "holds no saved result" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("dpi", ["0", "19", "601"])
+def test_plot_checks_the_dpi_before_making_its_folder(runs, tmp_path, capsys, dpi):
+    out = tmp_path / "x1"
+    status, lines, err = plot(capsys, str(runs["single"]), "--dpi", dpi, "--out", str(out))
+    assert status == 2
+    assert len(err) == 1
+    assert err[0].startswith("crlbswarm: error: --dpi: must be ")
+    assert lines == []
+    assert not out.exists()
 
 
 def test_every_kind_of_folder_reloads_with_its_own_arrays(runs):

@@ -136,6 +136,65 @@ def test_a_thousand_runs_fit_the_size_limit(paper):
     assert len(html.encode()) < limit * 1e6 + 200e3  # the code, the per-run metadata, the band
 
 
+def coarse(paper, stride: int):
+    """The batch as if its trajectories were kept every ``stride`` steps (a multiple of 2)."""
+    return dataclasses.replace(paper, positions=paper.positions[:, :: stride // 2],
+                               velocities=paper.velocities[:, :: stride // 2],
+                               trajectory_stride=stride)  # fmt: skip
+
+
+def decoded(text: str, shape: tuple[int, ...]) -> np.ndarray:
+    import base64
+
+    return np.frombuffer(base64.b64decode(text), dtype="<f4").reshape(shape)
+
+
+def test_time_plots_have_their_own_points_whatever_the_trajectory_stride(paper):
+    """Kept every 100 steps, the trajectories give 5 frames; the time series still have a
+    point at every step (401 <= max_frames), the clearance the smallest since the last."""
+    sparse = coarse(paper, 100)
+    data = replay_data(sparse)
+    assert data["frameStep"] == [0, 100, 200, 300, 400]
+    assert data["seriesStep"] == list(range(401))
+    assert data["seriesTime"] == pytest.approx(paper.time)
+    assert data["decimation"]["seriesPoints"] == 401
+    series = data["groups"][0]["series"]
+    np.testing.assert_array_equal(decoded(series["crlb"], (RUNS, 401)),
+                                  paper.crlb.astype("<f4"))  # fmt: skip
+    # Capped: the points are a stride over every step, the minima over each interval.
+    data = replay_data(sparse, max_frames=50)
+    steps = np.array(data["seriesStep"])
+    assert steps.tolist() == [*range(0, 400, 9), 400]  # ceil(400 / 49) = 9: 46 points
+    got = decoded(data["groups"][0]["series"]["separation"], (RUNS, 46))
+    np.testing.assert_array_equal(got, interval_minima(paper.separation, steps).astype("<f4"))
+
+
+def test_few_kept_steps_need_few_frames_and_no_fit_says_so(paper):
+    """5 kept steps need 5 frames of the size limit, not 20; a limit below one run's worth
+    names --max-mb and says that no run fits."""
+    sparse = coarse(paper, 100)
+    one_run = 5 * (2 * 6 + 5) * 16 / 3  # bytes of 5 frames of 6 UAVs and 5 series
+    data = replay_data(sparse, runs=[0], max_mb=1.01 * one_run / 1e6)
+    assert len(data["frameStep"]) == 5
+    with pytest.raises(FieldError, match="no run fits in a page of") as info:
+        replay_data(sparse, runs=[0], max_mb=0.9 * one_run / 1e6)
+    assert info.value.field == "max_mb"
+
+
+@pytest.mark.parametrize("command", ["replay", "report"])
+def test_a_page_must_be_an_html_file(paper_dir, tmp_path, capsys, command):
+    out = tmp_path / "page.txt"
+    status, _, err = run(capsys, command, str(paper_dir), "-o", str(out))
+    assert status == 2
+    assert err == (f"crlbswarm: error: -o/--out: expected a file name ending in .html or .htm, "
+                   f"got {str(out)!r}\n")  # fmt: skip
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(FieldError, match=r"\.html or \.htm") as info:
+        write_replay(load_results(paper_dir), tmp_path / "page.HTML5")
+    assert info.value.field == "path"
+    assert run(capsys, "replay", str(paper_dir), "-o", str(tmp_path / "p.HTM"))[0] == 0
+
+
 def test_too_many_runs_for_the_limit_are_refused(paper):
     with pytest.raises(FieldError, match="choose at most") as info:
         replay_html(tiled(paper, 1000), max_mb=0.05)
@@ -309,15 +368,33 @@ def test_page_in_the_browser(paper, paper_page, browser):
         page.locator("#slider").fill(str(i))
         t = page.evaluate("crlbReplay.time()")
         assert t == pytest.approx(times[i])
-        step, row = kept_row(paper, t)
+        _, row = kept_row(paper, t)
         expected = paper.positions[0, row]
         got = np.array(page.evaluate("crlbReplay.uavPositions()"))
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-4)
-        values = page.evaluate("crlbReplay.seriesValues()")
-        assert values["crlb"][0] == pytest.approx(paper.crlb[0, step], rel=1e-6)
-        assert values["eta"][0] == pytest.approx(paper.eta[0, step], rel=1e-6)
         assert check_uav_pixels(page, expected) >= 3
         assert page.locator("#time-label").inner_text().startswith(f"t = {t:.1f} s")
+        # The time plots have their own points (among every step): at one, the data's values.
+        point_times = page.evaluate("crlbReplay.seriesTimes()")
+        j = int(np.argmin(np.abs(np.array(point_times) - 25.0)))
+        page.evaluate(f"crlbReplay.setTime({point_times[j]})")
+        k = round(point_times[j] / paper.scenario.time.step)
+        values = page.evaluate("crlbReplay.seriesValues()")
+        assert values["crlb"][0] == pytest.approx(paper.crlb[0, k], rel=1e-6)
+        assert values["eta"][0] == pytest.approx(paper.eta[0, k], rel=1e-6)
+        page.locator("#slider").fill(str(i))
+
+        # The footer says how the time plots are sampled; the legend names F*; the run panel
+        # gives a convergence time only to a converged run.
+        assert "Time plots: " in page.locator("#note").inner_text()
+        assert "F* (CRLB-optimal)" in page.locator("#legend").inner_text()
+        cells = page.locator("#info span").all_inner_texts()
+        outcome, conv = (
+            cells[cells.index("outcome") + 1],
+            cells[cells.index("convergence time") + 1],
+        )
+        assert outcome != "converged"  # (40 s of the 150 s mission)
+        assert conv == "– (not converged)"
 
         # The run selector switches to that run's data at the same time.
         page.select_option("#run", "2")

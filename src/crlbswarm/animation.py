@@ -18,6 +18,17 @@ binary of the optional package ``imageio-ffmpeg`` (``pip install 'crlbswarm[vide
 file beside the destination and renamed when complete
 (:func:`crlbswarm.output.atomic_path`). Matplotlib, Pillow and imageio-ffmpeg are imported
 only when an animation is made.
+
+**GIF limits.** Pillow holds every frame of a GIF in memory until the file is written
+(about 1.2 bytes per pixel): a GIF of more than :data:`GIF_MAX_PIXELS` pixels in all
+(frames x width x height) is refused before anything is drawn; the defaults (300 frames of
+at most 800 x 1120 pixels) always fit. A GIF stores each frame's delay in hundredths of a
+second and browsers stretch delays under 2 to 10, so a GIF plays at most
+:data:`GIF_MAX_FPS` frames per second, and at ``100 / round(100 / fps)`` exactly
+(:func:`written_fps`).
+
+**Several targets.** A :class:`~crlbswarm.results.GroupMissionResult` is animated one
+group per file (:func:`animation_paths`), each titled with its UAVs' indices in the swarm.
 """
 
 from __future__ import annotations
@@ -30,9 +41,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import _validation as _v
+from .design import formation_labels
 from .errors import FieldError
+from .geometry import outline_order
 from .output import atomic_path, check_output_file
-from .results import MissionResult
+from .results import GroupMissionResult, MissionResult
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -41,8 +54,13 @@ __all__ = [
     "ANIMATION_FORMATS",
     "DEFAULT_FPS",
     "DEFAULT_MAX_FRAMES",
+    "GIF_MAX_FPS",
+    "GIF_MAX_PIXELS",
     "animate_mission",
+    "animation_paths",
+    "frame_size",
     "frame_steps",
+    "written_fps",
 ]
 
 #: The file suffixes :func:`animate_mission` writes.
@@ -59,6 +77,12 @@ MAX_FPS = 120
 
 #: Most frames (about 14 minutes at 120 frames per second).
 MAX_FRAMES = 100_000
+
+#: Largest frame rate of a GIF, frames per second (delays of 2 hundredths of a second).
+GIF_MAX_FPS = 50
+
+#: Most pixels of a GIF, all frames together (Pillow keeps every frame in memory).
+GIF_MAX_PIXELS = 300_000_000
 
 #: Width of a frame in inches (its pixels: this times ``dpi``, rounded to a multiple of 16).
 FRAME_WIDTH_IN = 8.0
@@ -115,8 +139,77 @@ def _ffmpeg() -> Any:
     return imageio_ffmpeg
 
 
+def written_fps(path: str | os.PathLike[str], fps: int) -> float:
+    """The frame rate an animation file plays at: ``fps`` for an MP4; for a GIF, whose
+    delays are whole hundredths of a second, ``100 / round(100 / fps)``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file (its suffix decides).
+    fps : int
+        The frame rate asked for, frames per second.
+
+    Returns
+    -------
+    float
+        Frames per second.
+
+    Examples
+    --------
+    >>> from crlbswarm.animation import written_fps
+    >>> written_fps("a.mp4", 30), round(written_fps("a.gif", 30), 2)
+    (30.0, 33.33)
+    """
+    if Path(path).suffix.lower() == ".gif":
+        return 100.0 / max(1, round(100 / fps))
+    return float(fps)
+
+
+def animation_paths(
+    result: MissionResult | GroupMissionResult, path: str | os.PathLike[str]
+) -> list[Path]:
+    """The files :func:`animate_mission` writes: ``path`` for one target; for several
+    targets one per group, ``<stem>_group<g><suffix>`` beside ``path``.
+
+    Parameters
+    ----------
+    result : MissionResult or GroupMissionResult
+        The result to animate.
+    path : str or path-like
+        The destination asked for.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files, in the order of the groups.
+    """
+    dest = Path(path)
+    if isinstance(result, GroupMissionResult):
+        return [dest.with_name(f"{dest.stem}_group{g}{dest.suffix}")
+                for g in range(len(result.groups))]  # fmt: skip
+    return [dest]
+
+
+def _parts(result: MissionResult | GroupMissionResult) -> list[tuple[MissionResult, str]]:
+    """Each result to draw and the words of its title that name its UAVs ("" for one
+    target)."""
+    if isinstance(result, GroupMissionResult):
+        return [
+            (group, f"group {g}: UAVs {', '.join(str(int(u) + 1) for u in members)} of "
+             f"{result.scenario.uavs.count}, ")
+            for g, (group, members) in enumerate(zip(result.groups, result.plan.members,
+                                                     strict=True))
+        ]  # fmt: skip
+    if isinstance(result, MissionResult):
+        return [(result, "")]
+    raise FieldError(
+        "result", f"must be a MissionResult or a GroupMissionResult, got {type(result).__name__}"
+    )
+
+
 def animate_mission(
-    result: MissionResult,
+    result: MissionResult | GroupMissionResult,
     path: str | os.PathLike[str],
     run: int = 0,
     *,
@@ -128,23 +221,25 @@ def animate_mission(
     """Write an animation of one run: an MP4 or a GIF, by the suffix of ``path``.
 
     Everything is checked before anything is drawn or written: the run, the trajectories,
-    the options, the destination and, for an MP4, the ffmpeg of imageio-ffmpeg. The frames
-    are :func:`frame_steps`; the file is written atomically.
+    the options, the size of a GIF, the destination and, for an MP4, the ffmpeg of
+    imageio-ffmpeg. The frames are :func:`frame_steps`; the file is written atomically.
 
     Parameters
     ----------
-    result : MissionResult
+    result : MissionResult or GroupMissionResult
         Simulation result with trajectories (``simulate(..., keep_trajectories=True)``, or
-        :func:`crlbswarm.load_results` of a ``simulate`` folder).
+        :func:`crlbswarm.load_results` of a ``simulate`` folder); with several targets,
+        one file per group (:func:`animation_paths`).
     path : str or path-like
         Destination, ``.mp4`` or ``.gif``; its folder must exist.
     run : int, default 0
         Index of the run in the batch.
     fps : int, default 20
-        Frames per second, 1 to 120 (a GIF stores each frame's duration in hundredths of a
-        second: ``round(100 / fps)``).
+        Frames per second, 1 to 120; for a GIF at most 50, played at
+        ``100 / round(100 / fps)`` (:func:`written_fps`: its delays are hundredths of a
+        second).
     max_frames : int, default 300
-        Most frames, 2 to 100 000.
+        Most frames, 2 to 100 000; a GIF has at most :data:`GIF_MAX_PIXELS` pixels in all.
     dpi : int, default 100
         Pixels per inch of the frames, 20 to 600: a frame is 8 inches wide (800 pixels at
         100 dpi), rounded to a multiple of 16 pixels, its height following the scene.
@@ -154,36 +249,103 @@ def animate_mission(
     Returns
     -------
     int
-        The number of frames written.
+        The number of frames written (in each file).
 
     Raises
     ------
     FieldError
-        If an argument is invalid (naming it), the result has no trajectories (field
-        ``result``), or an MP4 is asked for without imageio-ffmpeg (field ``path``).
+        If an argument is invalid (naming it; a GIF too large names ``max_frames``), the
+        result has no trajectories (field ``result``), or an MP4 is asked for without
+        imageio-ffmpeg (field ``path``).
     """
     dest = Path(path)
     suffix = dest.suffix.lower()
     if suffix not in ANIMATION_FORMATS:
         raise FieldError("path", f"expected a file name ending in .mp4 or .gif, got {str(dest)!r}")
-    b = result.run_index(run)
-    if result.positions is None:
-        raise FieldError(
-            "result", "has no trajectories to animate (simulated with keep_trajectories=False)"
-        )
+    parts = _parts(result)
+    b = parts[0][0].run_index(run)
+    if any(part.positions is None for part, _ in parts):
+        raise FieldError("result", "has no trajectories to animate (simulated with "
+                         "keep_trajectories=False or --no-trajectories)")  # fmt: skip
     rate = _v.count(fps, "fps", 1, MAX_FPS)
-    steps = frame_steps(result, max_frames)
+    if suffix == ".gif" and rate > GIF_MAX_FPS:
+        raise FieldError("fps", f"a GIF plays at most {GIF_MAX_FPS} frames per second (its "
+                         "delays are hundredths of a second, and browsers stretch shorter "
+                         f"ones), got {rate}; write an .mp4 for more")  # fmt: skip
+    steps = frame_steps(parts[0][0], max_frames)
     resolution = _v.count(dpi, "dpi", 20, 600)
-    check_output_file(dest, "path", overwrite=overwrite)
+    if suffix == ".gif":
+        _check_gif_size(steps.size, [frame_size(part, b, resolution) for part, _ in parts])
+    dests = animation_paths(result, dest)
+    for each in dests:
+        check_output_file(each, "path", overwrite=overwrite)
     ffmpeg = _ffmpeg() if suffix == ".mp4" else None
-    scene = _Scene(result, b, resolution)
-    frames = (scene.frame(int(k)) for k in steps)
-    with atomic_path(dest) as tmp:
-        if ffmpeg is not None:
-            _write_mp4(ffmpeg, tmp, frames, scene.size, rate)
-        else:
-            _write_gif(tmp, frames, rate)
+    for (part, words), each in zip(parts, dests, strict=True):
+        scene = _Scene(part, b, resolution, words)
+        frames = (scene.frame(int(k)) for k in steps)
+        with atomic_path(each) as tmp:
+            if ffmpeg is not None:
+                _write_mp4(ffmpeg, tmp, frames, scene.size, rate)
+            else:
+                _write_gif(tmp, frames, rate)
     return int(steps.size)
+
+
+def _check_gif_size(n_frames: int, sizes: list[tuple[int, int]]) -> None:
+    """Refuse a GIF whose frames hold more than :data:`GIF_MAX_PIXELS` pixels in all."""
+    width, height = max(sizes, key=lambda wh: wh[0] * wh[1])
+    pixels = n_frames * width * height
+    if pixels > GIF_MAX_PIXELS:
+        raise FieldError(
+            "max_frames", f"a GIF of {n_frames} frames of {width} x {height} pixels holds "
+            f"{pixels:.3g} pixels in memory, more than its limit of {GIF_MAX_PIXELS:.0e}: "
+            "give fewer frames (--max-frames) or a lower dpi (--dpi), or write an .mp4",
+        )  # fmt: skip
+
+
+def frame_size(result: MissionResult, run: int = 0, dpi: int = 100) -> tuple[int, int]:
+    """The width and height in pixels of the frames of a run's animation.
+
+    The width is 8 inches at ``dpi``, rounded to a multiple of 16 pixels; the map takes 70 %
+    of it (the legend the rest) and 80 % of the height, which follows the scene's aspect
+    ratio (clipped to 0.35 .. 1.6), rounded to a multiple of 16 pixels.
+
+    Parameters
+    ----------
+    result : MissionResult
+        Simulation result with trajectories.
+    run : int, default 0
+        Index of the run in the batch.
+    dpi : int, default 100
+        Pixels per inch, 20 to 600.
+
+    Returns
+    -------
+    (int, int)
+        Width and height, pixels.
+    """
+    b = result.run_index(run)
+    resolution = _v.count(dpi, "dpi", 20, 600)
+    low, high = _extent(result, b)
+    span = high - low
+    width = 16 * round(FRAME_WIDTH_IN * resolution / 16)
+    ratio = float(np.clip(span[1] / span[0], 0.35, 1.6))
+    return width, 16 * max(1, round(width * 0.70 * ratio / 0.80 / 16))
+
+
+def _extent(result: MissionResult, run: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners of what is drawn of a run, with a margin, m."""
+    if result.positions is None:
+        raise FieldError("result", "has no trajectories to animate")
+    points = [result.positions[run].reshape(-1, 2), result.target[run]]
+    if result.estimate is not None:
+        points.append(result.estimate[run])
+    slots = result.scenario.slots - np.asarray(result.scenario.target)
+    points.append(result.target[run, -1] + slots)
+    allp = np.concatenate(points)
+    low, high = allp.min(axis=0), allp.max(axis=0)
+    pad = 0.06 * float(np.max(high - low)) + 3.0
+    return low - pad, high + pad
 
 
 def _write_mp4(
@@ -215,10 +377,10 @@ def _write_gif(path: Path, frames: Iterator[np.ndarray], fps: int) -> None:
 class _Scene:
     """The figure of one run, drawn once; :meth:`frame` moves its artists to a step."""
 
-    def __init__(self, result: MissionResult, run: int, dpi: int) -> None:
+    def __init__(self, result: MissionResult, run: int, dpi: int, words: str = "") -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-        self.result, self.run = result, run
+        self.result, self.run, self.words = result, run, words
         self.rows = {int(k): i for i, k in enumerate(result.trajectory_steps)}
         if result.positions is None:
             raise FieldError("result", "has no trajectories to animate")
@@ -236,28 +398,12 @@ class _Scene:
         self.canvas.draw()
         self.background = self.canvas.copy_from_bbox(self.fig.bbox)
 
-    def _extent(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower-left and upper-right corners of what is drawn, with a margin, m."""
-        r = self.result
-        points = [self.q.reshape(-1, 2), r.target[self.run]]
-        if r.estimate is not None:
-            points.append(r.estimate[self.run])
-        slots = r.scenario.slots - np.asarray(r.scenario.target)
-        points.append(r.target[self.run, -1] + slots)
-        allp = np.concatenate(points)
-        low, high = allp.min(axis=0), allp.max(axis=0)
-        pad = 0.06 * float(np.max(high - low)) + 3.0
-        return low - pad, high + pad
-
     def _figure(self, dpi: int) -> tuple[Figure, tuple[int, int]]:
         from matplotlib.figure import Figure
 
-        low, high = self._extent()
+        low, high = _extent(self.result, self.run)
         span = high - low
-        width = 16 * round(FRAME_WIDTH_IN * dpi / 16)
-        # The map takes 70 % of the width (the legend the rest) and 80 % of the height.
-        ratio = float(np.clip(span[1] / span[0], 0.35, 1.6))
-        height = 16 * max(1, round(width * 0.70 * ratio / 0.80 / 16))
+        width, height = frame_size(self.result, self.run, dpi)
         fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
         box = (0.08, 0.08, 0.70, 0.80)
         self.ax = fig.add_axes(box)
@@ -270,17 +416,13 @@ class _Scene:
         return fig, (width, height)
 
     def _draw_static(self) -> None:
-        from matplotlib.patches import Circle, Patch, Polygon, Rectangle
+        from matplotlib.patches import Polygon
+
+        from .plots import draw_obstacles  # (Matplotlib is loaded by now)
 
         r, ax = self.result, self.ax
         sc = r.scenario
-        obstacles = sc.obstacle_set
-        shapes: list[Patch] = [Circle((cx, cy), rad) for cx, cy, rad in obstacles.circles]
-        rects = obstacles.rectangles
-        shapes += [Rectangle((x0, y0), x1 - x0, y1 - y0) for x0, x1, y0, y1 in rects]
-        for i, shape in enumerate(shapes):
-            shape.set(color="0.55", alpha=0.8, lw=0, label="obstacle" if i == 0 else None)
-            ax.add_patch(shape)
+        draw_obstacles(ax, sc.obstacle_set)
         leader, m_uavs = sc.uavs.leader, self.q.shape[1]
         colours = [f"C{m % 10}" if m % 10 != 3 else "C9" for m in range(m_uavs)]
         colours[leader] = "C3"
@@ -291,8 +433,9 @@ class _Scene:
         ]  # fmt: skip
         self.tracks[(leader + 1) % m_uavs].set_label("followers' tracks")
         self.slots = np.asarray(sc.slots) - np.asarray(sc.target)
+        self.slots = self.slots[outline_order(self.slots)]
         self.optimum = Polygon(self.slots, closed=True, fill=False, ec="C3", ls="--", lw=0.9,
-                               label="F* over the target")  # fmt: skip
+                               label=formation_labels(sc)["formation"])  # fmt: skip
         ax.add_patch(self.optimum)
         self.polygon = Polygon(self.q[0], closed=True, fc="C0", alpha=0.12, ec="k", lw=1.0,
                                label="formation")  # fmt: skip
@@ -310,8 +453,8 @@ class _Scene:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
         seed = int(r.seeds[self.run])
-        self.fig.text(0.08, 0.975, f"scenario '{sc.name}', run {self.run} (seed {seed})",
-                      fontsize=9, va="top")  # fmt: skip
+        self.fig.text(0.08, 0.975, f"scenario '{sc.name}', {self.words}run {self.run} "
+                      f"(seed {seed})", fontsize=9, va="top", parse_math=False)  # fmt: skip
         self.caption = self.fig.text(0.08, 0.945, "", fontsize=9, va="top", family="monospace")
 
     def frame(self, step: int) -> np.ndarray:
@@ -321,9 +464,7 @@ class _Scene:
         q = self.q[row]
         for m, track in enumerate(self.tracks):
             track.set_data(self.q[: row + 1, m, 0], self.q[: row + 1, m, 1])
-        centroid = q.mean(axis=0)
-        order = np.argsort(np.arctan2(q[:, 1] - centroid[1], q[:, 0] - centroid[0]))
-        self.polygon.set_xy(q[order])
+        self.polygon.set_xy(q[outline_order(q)])
         self.uavs.set_offsets(q)
         target = r.target[b, step]
         self.target.set_data([target[0]], [target[1]])

@@ -446,9 +446,10 @@ def _add_sweep(sub: Any) -> None:
 def _runs_dir_argument(command: Any, fields: dict[str, str]) -> None:
     """RUNS_DIR and --run of ``plot`` and ``animate``."""
     command.add_argument("runs_dir", metavar="RUNS_DIR", type=_path,
-                         help="a folder written by crlbswarm simulate (a group's folder for "
-                         "several targets), or a campaign's trajectories/variant=<id> folder "
-                         "or one of its part folders")  # fmt: skip
+                         help="a folder written by crlbswarm simulate (with several "
+                         "targets, each group is drawn, in files named for it), or a "
+                         "campaign's trajectories/variant=<id> folder or one of its part "
+                         "folders")  # fmt: skip
     fields["folder"] = fields["result"] = "RUNS_DIR"
     _option(command, fields, "--run", field="run", type=int, default=0, metavar="I",
             help="index of the run in the batch, from 0 (default 0)")  # fmt: skip
@@ -466,7 +467,8 @@ def _add_plot(sub: Any) -> None:
         "trajectories with formation snapshots (runI_trajectories, as Fig. 3), its CRLB, cost "
         "and eta over time (runI_timeseries, as Fig. 4), and for the whole batch the "
         "estimation error against the PCRB (estimation, with estimation on) and the "
-        "distributions of the per-run metrics (metrics, with two runs or more).",
+        "distributions of the per-run metrics (metrics, with two runs or more). With several "
+        "targets, the figures of each group, their files starting with groupG_.",
     )
     _runs_dir_argument(plot, fields)
     _option(plot, fields, "--out", field="out_dir", type=_path, default=None, metavar="DIR",
@@ -474,7 +476,8 @@ def _add_plot(sub: Any) -> None:
     _option(plot, fields, "--format", field="fmt", default="png", choices=FIGURE_FORMATS,
             help="image format (default %(default)s)")  # fmt: skip
     _option(plot, fields, "--dpi", field="dpi", type=int, default=150,
-            help="resolution of a png, pixels per inch (default %(default)s)")  # fmt: skip
+            help="resolution of a png, pixels per inch, 20 to 600 "
+            "(default %(default)s)")  # fmt: skip
     plot.add_argument("--force", action="store_true",
                       help="replace files of the same names in DIR")  # fmt: skip
 
@@ -491,14 +494,16 @@ def _add_animate(sub: Any) -> None:
         "polygon, obstacles, the target and the UAVs' estimate, with time, eta and the CRLB "
         "as a caption. One frame per kept step, evenly decimated to at most --max-frames "
         "(first and last step included). An .mp4 needs the optional package imageio-ffmpeg "
-        "(pip install 'crlbswarm[video]'); a .gif does not.",
+        "(pip install 'crlbswarm[video]'); a .gif does not, but plays at most 50 fps and "
+        "holds at most 3e8 pixels (frames x width x height). With several targets, one file "
+        "per group, FILE_groupG.mp4.",
     )
     _runs_dir_argument(animate, fields)
     _option(animate, fields, "-o", "--out", field="path", type=_path, required=True,
             metavar="FILE", help="the animation, FILE.mp4 or FILE.gif (an existing file is "
             "refused unless --force)")  # fmt: skip
     _option(animate, fields, "--fps", field="fps", type=int, default=DEFAULT_FPS,
-            help="frames per second (default %(default)s)")  # fmt: skip
+            help="frames per second, 1 to 120 (a .gif: to 50) (default %(default)s)")  # fmt: skip
     _option(animate, fields, "--max-frames", field="max_frames", type=int, metavar="N",
             default=DEFAULT_MAX_FRAMES, help="most frames (default %(default)s)")  # fmt: skip
     _option(animate, fields, "--dpi", field="dpi", type=int, default=100,
@@ -507,44 +512,61 @@ def _add_animate(sub: Any) -> None:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
+    from ._validation import count
     from .output import check_output_file, check_output_folder
-    from .results import load_results
+    from .replay import load_mission_folder
 
-    result = load_results(args.runs_dir)
-    b = result.run_index(args.run)
+    count(args.dpi, "dpi", 20, 600)  # (before any folder is made)
+    parts = _result_parts(load_mission_folder(args.runs_dir))
+    b = parts[0][1].run_index(args.run)
     out = args.out if args.out is not None else args.runs_dir / "plots"
     check_output_folder(out, "out_dir")
     from .plots import run_figure_names  # (Matplotlib: after the checks of the input)
 
-    names = run_figure_names(result)
-    paths = {n: out / f"{f'run{b}_' if n in ('trajectories', 'timeseries') else ''}{n}."
-             f"{args.format}" for n in names}  # fmt: skip
+    per_run = ("trajectories", "timeseries")  # (the figures of the run; the others: the batch)
+    paths = {(prefix, n): out / f"{prefix}{f'run{b}_' if n in per_run else ''}{n}.{args.format}"
+             for prefix, part, _ in parts for n in run_figure_names(part)}  # fmt: skip
     if out.is_dir():  # nothing is replaced unasked, and nothing is written on a refusal
         for path in paths.values():
             check_output_file(path, "out_dir", overwrite=args.force)
     from .output import make_output_folder, save_figure
     from .plots import run_figures
 
-    figures = run_figures(result, b)
+    figures = {(prefix, name): fig for prefix, part, uavs in parts
+               for name, fig in run_figures(part, b, uavs=uavs).items()}  # fmt: skip
     make_output_folder(out, "out_dir")
-    for name, fig in figures.items():
-        save_figure(fig, paths[name], dpi=args.dpi)
-        print(f"wrote {paths[name]}")
-    if "trajectories" not in names:
+    for key, fig in figures.items():
+        save_figure(fig, paths[key], dpi=args.dpi)
+        print(f"wrote {paths[key]}")
+    if parts[0][1].positions is None:
         print("note: no trajectories in RUNS_DIR (simulated with --no-trajectories): "
               "runI_trajectories left out")  # fmt: skip
     return 0
 
 
-def _cmd_animate(args: argparse.Namespace) -> int:
-    from .animation import animate_mission
-    from .results import load_results
+def _result_parts(result: Any) -> list[tuple[str, Any, list[int] | None]]:
+    """What ``plot`` draws of a result: its file prefix, the result and its UAVs' indices
+    in the swarm (None: all of one target's); a group's for each group of several targets."""
+    from .results import GroupMissionResult
 
-    result = load_results(args.runs_dir)
+    if isinstance(result, GroupMissionResult):
+        return [(f"group{g}_", group, [int(u) for u in members])
+                for g, (group, members) in enumerate(zip(result.groups, result.plan.members,
+                                                         strict=True))]  # fmt: skip
+    return [("", result, None)]
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from .animation import animate_mission, animation_paths, written_fps
+    from .replay import load_mission_folder
+
+    result = load_mission_folder(args.runs_dir)
     frames = animate_mission(result, args.out, args.run, fps=args.fps,
                              max_frames=args.max_frames, dpi=args.dpi,
                              overwrite=args.force)  # fmt: skip
-    print(f"wrote {args.out} ({frames} frames, {frames / args.fps:.1f} s at {args.fps} fps)")
+    rate = written_fps(args.out, args.fps)
+    for path in animation_paths(result, args.out):
+        print(f"wrote {path} ({frames} frames, {frames / rate:.1f} s at {rate:.3g} fps)")
     return 0
 
 
@@ -1146,8 +1168,8 @@ def _add_replay(sub: Any) -> None:
                         help="folder written by `crlbswarm simulate --out`")  # fmt: skip
     fields["folder"] = fields["result"] = "RUNS_DIR"
     _option(replay, fields, "-o", "--out", field="out", required=True, type=_path,
-            metavar="FILE", help="the HTML file to write (refused if it exists, unless "
-            "--force)")  # fmt: skip
+            metavar="FILE", help="the HTML file to write, .html or .htm (refused if it "
+            "exists, unless --force)")  # fmt: skip
     fields["path"] = fields["out"]
     replay.add_argument("--force", action="store_true", help="replace FILE if it exists")
     _option(replay, fields, "--runs", field="runs", default=None, metavar="LIST",
@@ -1184,8 +1206,9 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from .output import check_output_file
     from .replay import MAX_FRAMES, MAX_MB, load_mission_folder, write_replay
     from .results import GroupMissionResult
+    from .webpage import check_page_path
 
-    check_output_file(args.out, "out", overwrite=args.force)  # before reading anything
+    check_output_file(check_page_path(args.out, "out"), "out", overwrite=args.force)
     result = load_mission_folder(args.runs_dir)
     first = result.groups[0] if isinstance(result, GroupMissionResult) else result
     runs = None if args.runs is None else _run_list(args.runs, first.n_runs)
@@ -1219,8 +1242,8 @@ def _add_report(sub: Any) -> None:
             metavar="CAMPAIGN_DIR", help="the --out folder of crlbswarm sweep")  # fmt: skip
     fields["campaign_dir"] = "CAMPAIGN_DIR"
     _option(report, fields, "-o", "--out", field="out", required=True, type=_path,
-            metavar="FILE", help="the HTML file to write (its folder must exist; an existing "
-            "file is refused unless --force)")  # fmt: skip
+            metavar="FILE", help="the HTML file to write, .html or .htm (its folder must "
+            "exist; an existing file is refused unless --force)")  # fmt: skip
     report.add_argument("--force", action="store_true", help="replace FILE if it exists")
     _option(report, fields, "--max-run-rows", field="max_run_rows", type=int,
             default=None, metavar="N",

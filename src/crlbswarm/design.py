@@ -28,7 +28,7 @@ the positive root (the other is negative). As :math:`H \to 0`, :math:`b \to 0` a
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -39,11 +39,15 @@ from .fisher import MAX_FIM, MIN_FIM, crlb
 from .geometry import regular_polygon
 from .radar import Radar, check_radar
 
+if TYPE_CHECKING:
+    from .scenario import Scenario
+
 __all__ = [
     "attainable_crlb",
     "best_eigenvalues",
     "crlb_bound",
     "design_report",
+    "formation_labels",
     "information_weight",
     "isotropic_azimuths",
     "optimal_elevation",
@@ -514,4 +518,47 @@ def design_report(
         "isotropic": bool(np.max(weights) <= np.sum(weights) - np.max(weights)),
         "rmse_bound_m": float(np.sqrt(value)),
         "radar": radar.to_dict(),
+    }
+
+
+def formation_labels(scenario: Scenario) -> dict[str, str]:
+    r"""What the views of a mission (figures, animation, replay page) call the formation
+    flown over the target and the bound its CRLB converges to.
+
+    The words follow :attr:`crlbswarm.Scenario.formation_design`: :math:`F^*` in closed
+    form whose bound is eq. (11), :math:`4/\sum_m w_m^*` (equal UAVs, or unequal ones none
+    of which dominates); :math:`F^*` whose bound is :math:`1/w^*_{\max} + 1/(\sum_m w_m^* -
+    w^*_{\max})` (one UAV dominates: :func:`attainable_crlb`); or the constrained design
+    flown when :math:`F^*` is blocked, whose bound is its own CRLB.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A scenario with one target (a group's scenario for several).
+
+    Returns
+    -------
+    dict of str to str
+        ``formation`` (the slots' name in a legend) and ``bound`` (the bound's).
+
+    Examples
+    --------
+    >>> import crlbswarm
+    >>> from crlbswarm.design import formation_labels
+    >>> formation_labels(crlbswarm.load_scenario("paper"))["bound"]
+    'bound 4/Σw* (eq. 11)'
+    """
+    design = scenario.formation_design
+    if design.method != "closed form":
+        return {
+            "formation": f"constrained design ({design.criterion}-optimal, F* blocked)",
+            "bound": "bound: CRLB of the constrained design (F* blocked)",
+        }
+    weights = optimal_weights(scenario.uavs.count, scenario.altitude, scenario.radar_model)
+    largest = float(np.max(weights))
+    if largest <= float(np.sum(weights)) - largest:
+        return {"formation": "F* (CRLB-optimal)", "bound": "bound 4/Σw* (eq. 11)"}
+    return {
+        "formation": "F* (CRLB-optimal; one UAV dominates)",
+        "bound": "bound 1/w*max + 1/(Σw* − w*max) (one UAV dominates)",
     }

@@ -15,8 +15,16 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from . import _validation as _v
+from .errors import FieldError
 
-__all__ = ["azimuth_angles", "clip_norm", "elevation_angles", "regular_polygon", "slant_ranges"]
+__all__ = [
+    "azimuth_angles",
+    "clip_norm",
+    "elevation_angles",
+    "outline_order",
+    "regular_polygon",
+    "slant_ranges",
+]
 
 
 @njit(cache=True, inline="always")
@@ -180,3 +188,42 @@ def regular_polygon(
     theta = theta0 + 2.0 * np.pi * np.arange(n) / n
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
     return c[..., None, :] + r[..., None, None] * unit
+
+
+def outline_order(points: ArrayLike) -> np.ndarray:
+    """Order in which to join points (the UAVs of a formation) into a polygon that never
+    crosses itself.
+
+    The points are taken by their angle around their centroid (the nearer first on a tie):
+    the outline of a polygon star-shaped about the centroid, which does not cross itself for
+    any number of points and any layout. For a formation at (or near) a regular polygon,
+    this is the ring order of its slots, whatever the UAVs' indices. The figures
+    (:mod:`crlbswarm.plots`) and the animation (:mod:`crlbswarm.animation`) draw the
+    formation in this order; the replay page sorts the same way in its script.
+
+    Parameters
+    ----------
+    points : array_like, shape (M, 2)
+        Horizontal positions, m.
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+        Indices into ``points``, in the order to draw them.
+
+    Raises
+    ------
+    FieldError
+        If ``points`` is not of shape (M, 2) (field ``points``).
+
+    Examples
+    --------
+    >>> from crlbswarm.geometry import outline_order
+    >>> outline_order([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]]).tolist()
+    [3, 0, 2, 1]
+    """
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise FieldError("points", f"expected shape (M, 2), got {p.shape}")
+    d = p - p.mean(axis=0)
+    return np.lexsort((np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])))

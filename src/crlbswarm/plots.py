@@ -23,16 +23,18 @@ from matplotlib.patches import Circle, Polygon, Rectangle
 from matplotlib.patheffects import withStroke
 from numpy.typing import ArrayLike
 
+from .design import formation_labels
 from .errors import FieldError
 from .experiments import FORMATION_LABELS, AltitudeSweep, ElevationCurve
+from .geometry import outline_order
 from .montecarlo import EstimatorSweep
 from .obstacles import Obstacles
 from .results import CENTROID_TOL, MissionResult
 
 __all__ = [
     "SNAPSHOT_GID",
+    "draw_obstacles",
     "mission_snapshot_steps",
-    "outline_order",
     "passage_interval",
     "plot_crlb_vs_altitude",
     "plot_estimation_timeseries",
@@ -316,33 +318,16 @@ def mission_snapshot_steps(result: MissionResult, run: int = 0) -> list[int]:
     return sorted(steps)
 
 
-def outline_order(points: ArrayLike) -> np.ndarray:
-    """Order in which to join the UAVs of a snapshot into a polygon that never crosses itself.
-
-    The points are taken by their angle around their centroid (the nearer first on a tie):
-    the outline of a polygon star-shaped about the centroid, which does not cross itself for
-    any number of points and any layout. For a formation at (or near) a regular polygon,
-    this is the ring order of its slots, whatever the UAVs' indices.
+def draw_obstacles(ax: Axes, obstacles: Obstacles) -> None:
+    """Draw obstacles as grey patches (the first labelled "obstacle" for a legend).
 
     Parameters
     ----------
-    points : array_like, shape (M, 2)
-        Horizontal positions, m.
-
-    Returns
-    -------
-    ndarray of int, shape (M,)
-        Indices into ``points``, in the order to draw them.
+    ax : matplotlib.axes.Axes
+        Axes to draw on (data coordinates in metres).
+    obstacles : Obstacles
+        The obstacles (``scenario.obstacle_set``).
     """
-    p = np.asarray(points, dtype=float)
-    if p.ndim != 2 or p.shape[1] != 2:
-        raise FieldError("points", f"expected shape (M, 2), got {p.shape}")
-    d = p - p.mean(axis=0)
-    return np.lexsort((np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])))
-
-
-def _draw_obstacles(ax: Axes, result: MissionResult) -> None:
-    obstacles = result.scenario.obstacle_set
     for i, (x0, x1, y0, y1) in enumerate(obstacles.rectangles):
         ax.add_patch(
             Rectangle(
@@ -368,13 +353,14 @@ def _draw_obstacles(ax: Axes, result: MissionResult) -> None:
         )
 
 
-def _track_style(m: int, leader: int, n_uavs: int) -> dict[str, Any]:
-    """Colour, width and legend label of UAV m's track (leader red and thicker)."""
+def _track_style(m: int, leader: int, n_uavs: int, name: int) -> dict[str, Any]:
+    """Colour, width and legend label of UAV m's track (leader red and thicker), the UAV
+    called "UAV ``name + 1``" (``name``: its index in the swarm)."""
     if m == leader:
-        return {"color": "C3", "lw": 1.6, "label": f"UAV {m + 1} (leader)", "zorder": 2.2}
+        return {"color": "C3", "lw": 1.6, "label": f"UAV {name + 1} (leader)", "zorder": 2.2}
     colour = f"C{m % 10}" if m % 10 != 3 else "C9"
     if n_uavs <= _MAX_TRACK_ENTRIES:
-        label: str | None = f"UAV {m + 1}"
+        label: str | None = f"UAV {name + 1}"
     else:
         label = "followers (colour per UAV)" if m == (1 if leader == 0 else 0) else None
     return {"color": colour, "lw": 0.8, "label": label, "zorder": 2.0}
@@ -425,14 +411,21 @@ def _legend_entries(ax: Axes) -> tuple[list[Any], list[str]]:
 
 
 def plot_mission_trajectories(  # long: one figure, drawn layer by layer
-    result: MissionResult, run: int = 0, ax: Axes | None = None, steps: list[int] | None = None
+    result: MissionResult,
+    run: int = 0,
+    ax: Axes | None = None,
+    steps: list[int] | None = None,
+    *,
+    uavs: Sequence[int] | None = None,
 ) -> Figure:
     """Fig. 3: UAV trajectories, obstacles and formation snapshots (the shrink in a passage).
 
     The formation is drawn at the steps of :func:`mission_snapshot_steps` as a polygon
-    joining the UAVs in :func:`outline_order` (never self-crossing), each labelled with its
-    time and eta at a free place beside it (off the tracks). The legend names every track
-    (one entry per UAV up to 10 UAVs); a moving target's path is drawn above the tracks.
+    joining the UAVs in :func:`~crlbswarm.geometry.outline_order` (never self-crossing),
+    each labelled with its time and eta at a free place beside it (off the tracks). The
+    legend names every track (one entry per UAV up to 10 UAVs; with ``uavs``, by their
+    indices in the swarm) and the formation over the target (F*, or the constrained design
+    flown when F* is blocked); a moving target's path is drawn above the tracks.
 
     Parameters
     ----------
@@ -446,6 +439,10 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
         Steps at which to draw the formation; by default :func:`mission_snapshot_steps`.
         Where positions were kept every few steps only (``trajectory_stride``), each is
         drawn at the nearest kept step.
+    uavs : sequence of int, optional
+        The UAVs' indices in the swarm, for their legend labels ("UAV i + 1"): a group's
+        members (``plan.members[g]`` of a :class:`~crlbswarm.results.GroupMissionResult`)
+        for group g of a mission with several targets; by default ``0 .. M-1``.
 
     Returns
     -------
@@ -453,9 +450,11 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
         The figure holding the axes.
     """
     if result.positions is None:
-        raise FieldError("result", "has no trajectories (simulated with keep_trajectories=False)")
+        raise FieldError("result", "has no trajectories (simulated with "
+                         "keep_trajectories=False or --no-trajectories)")  # fmt: skip
     b = _check_run(result, run)
     q = result.positions[b]
+    names = _uav_names(uavs, q.shape[1])
     lo, hi = _scene_box(result, b)
     own = ax is None
     legend_below = False
@@ -463,10 +462,11 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
         entries = min(q.shape[1], _MAX_TRACK_ENTRIES + 1) + 6
         ax, legend_below = _trajectory_figure(lo, hi, entries)
     fig = _figure_of(ax)
-    _draw_obstacles(ax, result)
+    draw_obstacles(ax, result.scenario.obstacle_set)
     leader = result.scenario.uavs.leader
     for m in range(q.shape[1]):
-        ax.plot(q[:, m, 0], q[:, m, 1], alpha=0.9, **_track_style(m, leader, q.shape[1]))
+        ax.plot(q[:, m, 0], q[:, m, 1], alpha=0.9,
+                **_track_style(m, leader, q.shape[1], names[m]))  # fmt: skip
     shapes, texts = [], []
     kept = result.trajectory_steps  # the steps whose positions are kept (all by default)
     for i, step in enumerate(steps if steps is not None else mission_snapshot_steps(result, b)):
@@ -482,8 +482,9 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
     # F* over the target where it is at the end (the target may move).
     target_path = result.target[b]
     slots = result.scenario.slots - np.asarray(result.scenario.target) + target_path[-1]
+    name = formation_labels(result.scenario)["formation"]  # (F*, or the constrained design)
     ax.add_patch(Polygon(slots[outline_order(slots)], closed=True, fill=False, ec="C3",
-                         ls="--", lw=1.0, label="F* (CRLB-optimal)"))  # fmt: skip
+                         ls="--", lw=1.0, label=name))  # fmt: skip
     moving = bool(np.ptp(target_path, axis=0).max() > 0)
     if moving:
         ax.plot(*target_path.T, color="k", lw=1.4, zorder=4.5, label="target path",
@@ -501,7 +502,10 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
     ax.set_aspect("equal", adjustable="datalim" if own else "box")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"Formation evolution, scenario '{result.scenario.name}', seed {result.seeds[b]}")
+    ax.set_title(
+        f"Formation evolution, scenario '{result.scenario.name}', seed {result.seeds[b]}",
+        parse_math=False,
+    )  # (the name is the user's text: a "$" is a dollar)
     ax.grid(True, alpha=0.3)
     handles, labels = _legend_entries(ax)
     if not own:
@@ -513,6 +517,16 @@ def plot_mission_trajectories(  # long: one figure, drawn layer by layer
             fig.legend(handles, labels, fontsize=7, loc="outside right upper")
     _label_snapshots(ax, shapes, texts)
     return fig
+
+
+def _uav_names(uavs: Sequence[int] | None, n_uavs: int) -> list[int]:
+    """The UAVs' indices in the swarm (``0 .. n_uavs-1`` by default), checked."""
+    if uavs is None:
+        return list(range(n_uavs))
+    names = [int(u) for u in np.asarray(uavs, dtype=np.int64).reshape(-1)]
+    if len(names) != n_uavs:
+        raise FieldError("uavs", f"expected {n_uavs} indices (one per UAV), got {len(names)}")
+    return names
 
 
 def _pixels(points: ArrayLike, ax: Axes, join: bool) -> np.ndarray:
@@ -638,7 +652,10 @@ def plot_mission_timeseries(  # long: three panels and their legends
     """Fig. 4: CRLB and control cost against time, with the bound and the passage shaded.
 
     A third panel shows the scaling factor eta (left axis) and the smallest obstacle
-    clearance with the safety radius (right axis), under one legend for both axes. The cost
+    clearance with the safety radius (right axis), under one legend for both axes; without
+    obstacles it has no clearance axis and says "no obstacles". The bound's label names
+    what it is (:func:`crlbswarm.design.formation_labels`: eq. (11), the dominant-UAV
+    optimum, or the CRLB of the constrained design flown when F* is blocked). The cost
     :math:`\\mathcal L_{tot}` of eq. (15) adds squared distances (m^2) and squared speeds
     (m^2/s^2), as printed in the paper; its axis says so.
 
@@ -674,32 +691,35 @@ def plot_mission_timeseries(  # long: three panels and their legends
             axis.axvspan(*window, color="0.85", zorder=0, lw=0,
                          label=label if axis is ax_crlb else None)  # fmt: skip
     ax_crlb.plot(t, result.crlb[b], color="C0", label="CRLB at the UAV positions")
-    ax_crlb.axhline(
-        result.bound,
-        color="k",
-        ls="--",
-        lw=1.0,
-        label=rf"bound $4/\sum_m w_m^*$ = {result.bound:.3g} m$^2$",
-    )
+    bound = formation_labels(result.scenario)["bound"]
+    ax_crlb.axhline(result.bound, color="k", ls="--", lw=1.0,
+                    label=f"{bound} = {result.bound:.3g} m²")  # fmt: skip
     ax_crlb.set_yscale("log")
     ax_crlb.set_ylabel(r"CRLB (m$^2$)")
     ax_crlb.legend(fontsize=8)
     ax_cost.plot(t[:-1], result.cost[b], color="C1")  # (one curve: its axis label names it)
     ax_cost.set_yscale("log")
     ax_cost.set_ylabel(r"cost $\mathcal{L}_{tot}$, eq. (15) (m$^2$ + m$^2$/s$^2$)")
-    ax_eta.plot(t, result.eta[b], color="C2", label=r"scaling $\eta$ (left axis)")
+    obstacles = result.scenario.obstacle_set.count > 0
+    ax_eta.plot(t, result.eta[b], color="C2",
+                label=r"scaling $\eta$" + (" (left axis)" if obstacles else ""))  # fmt: skip
     ax_eta.set_ylim(0.0, 1.05)
     ax_eta.set_ylabel(r"scaling $\eta$ (-)")
-    ax_clear = ax_eta.twinx()
-    clearance = np.minimum(result.clearance[b], 1e3)
-    ax_clear.plot(t, clearance, color="0.4", lw=0.8, label="min obstacle clearance (right axis)")
-    ax_clear.axhline(l_safe, color="0.4", ls=":", lw=0.8,
-                     label=f"safety radius $l_{{safe}}$ = {l_safe:g} m (right axis)")  # fmt: skip
-    ax_clear.set_ylabel("min clearance (m)")
     ax_eta.set_xlabel("time (s)")
     handles, labels = _legend_entries(ax_eta)
-    more, more_labels = _legend_entries(ax_clear)
-    ax_clear.legend(handles + more, labels + more_labels, fontsize=7, loc="center right")
+    if obstacles:
+        ax_clear = ax_eta.twinx()
+        ax_clear.plot(t, result.clearance[b], color="0.4", lw=0.8,
+                      label="min obstacle clearance (right axis)")  # fmt: skip
+        ax_clear.axhline(l_safe, color="0.4", ls=":", lw=0.8, label=f"safety radius "
+                         f"$l_{{safe}}$ = {l_safe:g} m (right axis)")  # fmt: skip
+        ax_clear.set_ylabel("min clearance (m)")
+        more, more_labels = _legend_entries(ax_clear)
+        ax_clear.legend(handles + more, labels + more_labels, fontsize=7, loc="center right")
+    else:  # (no clearance to draw: it is infinite at every step)
+        ax_eta.text(0.99, 0.04, "no obstacles: no clearance", transform=ax_eta.transAxes,
+                    ha="right", va="bottom", fontsize=7, color="0.3")  # fmt: skip
+        ax_eta.legend(handles, labels, fontsize=7, loc="center right")
     ax_crlb.set_title(
         "CRLB and control cost over time"
         + (f" (shaded: passage, {window[0]:.0f}-{window[1]:.0f} s)" if window else "")
@@ -847,7 +867,7 @@ def plot_estimation_timeseries(
             label=r"$\sqrt{\mathrm{CRLB}}$ of one snapshot")  # fmt: skip
     ax.set_yscale("log")
     ax.set_ylabel("position error (m)")
-    ax.set_title(f"Sensing in the loop, scenario '{result.scenario.name}'")
+    ax.set_title(f"Sensing in the loop, scenario '{result.scenario.name}'", parse_math=False)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     ax_c.plot(t, np.sqrt(np.mean(result.centroid_error**2, axis=0)), color="C2",
@@ -902,7 +922,8 @@ def plot_batch_metrics(result: MissionResult, axes: Sequence[Axes] | None = None
 
     Six panels: the count of each outcome (:data:`crlbswarm.results.OUTCOMES`), and
     histograms over the runs of the final CRLB / bound (with the convergence tolerance
-    :data:`crlbswarm.results.CRLB_TOL`), the convergence time (converged runs only), the
+    :data:`crlbswarm.results.CRLB_TOL`), the convergence time of the runs whose outcome is
+    ``converged`` (a run that collided has none here, even if its CRLB settled), the
     smallest obstacle clearance (with the safety radius), the smallest separation between
     two UAVs (with ``safety.min_separation``), and the final distance from the centroid to
     its place over the target (or, with estimation, the final estimation error).
@@ -948,8 +969,11 @@ def plot_batch_metrics(result: MissionResult, axes: Sequence[Axes] | None = None
     ax.legend(fontsize=7)
     ax.set_title("final CRLB relative to the bound", fontsize=9)
     ax = axes[2]
-    conv = _finite_hist(ax, m["convergence_time_s"], "convergence time (s)", "no run converged")
-    ax.set_title(f"convergence time ({conv.size} of {n} converged)", fontsize=9)
+    converged = m["outcome"] == "converged"  # (a collided run may have settled all the same)
+    conv = np.where(converged, m["convergence_time_s"], np.nan)
+    _finite_hist(ax, conv, "convergence time, converged runs (s)", "no run converged")
+    ax.set_title(f"convergence time ({np.count_nonzero(converged)} of {n} converged)",
+                 fontsize=9)  # fmt: skip
     ax = axes[3]
     _finite_hist(ax, m["min_clearance_m"], "smallest clearance to an obstacle (m)",
                  "no obstacles", color="C5", marks=[0.0, sc.control.safety_radius])  # fmt: skip
@@ -976,7 +1000,8 @@ def plot_batch_metrics(result: MissionResult, axes: Sequence[Axes] | None = None
                      color="C9")  # fmt: skip
         ax.set_title("final centroid error", fontsize=9)
     seeds = f"seed {result.seeds[0]}" if n == 1 else f"seeds {result.seeds[0]}..{result.seeds[-1]}"
-    fig.suptitle(f"Metrics of {n} run{'s' * (n != 1)} of scenario '{sc.name}' ({seeds})")
+    fig.suptitle(f"Metrics of {n} run{'s' * (n != 1)} of scenario '{sc.name}' ({seeds})",
+                 parse_math=False)  # fmt: skip
     return fig
 
 
@@ -989,16 +1014,21 @@ RUN_FIGURES = {
 }
 
 
-def run_figures(result: MissionResult, run: int = 0) -> dict[str, Figure]:
+def run_figures(
+    result: MissionResult, run: int = 0, *, uavs: Sequence[int] | None = None
+) -> dict[str, Figure]:
     """The figures of one run of a result, and of its batch: what ``crlbswarm plot`` writes.
 
     Parameters
     ----------
     result : MissionResult
         Simulation result (for example :func:`crlbswarm.load_results` of a ``simulate``
-        folder).
+        folder, or one group of a mission with several targets).
     run : int, default 0
         Index of the run in the batch.
+    uavs : sequence of int, optional
+        The UAVs' indices in the swarm, for the trajectories' legend (a group's members);
+        by default ``0 .. M-1``.
 
     Returns
     -------
@@ -1012,7 +1042,7 @@ def run_figures(result: MissionResult, run: int = 0) -> dict[str, Figure]:
     """
     b = result.run_index(run)
     draw = {
-        "trajectories": lambda: plot_mission_trajectories(result, b),
+        "trajectories": lambda: plot_mission_trajectories(result, b, uavs=uavs),
         "timeseries": lambda: plot_mission_timeseries(result, b),
         "estimation": lambda: plot_estimation_timeseries(result),
         "metrics": lambda: plot_batch_metrics(result),

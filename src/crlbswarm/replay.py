@@ -2,16 +2,19 @@
 
 :func:`replay_html` turns a :class:`~crlbswarm.results.MissionResult` (or a
 :class:`~crlbswarm.results.GroupMissionResult`, several targets) into one HTML file that
-works offline: the data (decimated in time, :func:`frame_rows`), the script and the style
-are inline, nothing is fetched. The page draws the obstacles, the UAVs' tracks, the
+works offline: the data (decimated in time, :func:`frame_rows`: the map's frames among the
+kept steps of the trajectories, the time plots' points among every step), the script and
+the style are inline, nothing is fetched. The page draws the obstacles, the UAVs' tracks, the
 formation polygon, the target and the UAVs' estimate on a canvas (zoom with the wheel, pan
 by dragging), with play, pause, speed, a time slider, a run selector and linked time plots
 of the CRLB and its bound, the cost, eta, the clearance and the separation. Its state is
 scriptable through ``window.crlbReplay`` (``docs/replay.md``).
 
 The page's script and style are package files (``web/replay.js``, ``web/replay.css``,
-``web/replay.html``); the generic pieces (:func:`package_text`, :func:`json_script`,
-:func:`float32_base64`, :func:`html_page`) serve any self-contained page.
+``web/replay.html``), assembled by :mod:`crlbswarm.webpage`.
+
+:func:`load_mission_folder` reads any ``crlbswarm simulate`` folder (one target or
+several): ``crlbswarm replay``, ``plot`` and ``animate`` all load through it.
 """
 
 from __future__ import annotations
@@ -26,10 +29,11 @@ from typing import Any
 import numpy as np
 
 from ._validation import count, positive_scalar
+from .design import formation_labels
 from .errors import FieldError
 from .output import check_output_file, write_text
 from .results import GroupMissionResult, MissionResult, load_results
-from .webpage import html_page, json_script, package_text
+from .webpage import check_page_path, html_page, json_script, package_text
 
 __all__ = [
     "MAX_FRAMES",
@@ -45,11 +49,13 @@ __all__ = [
     "write_replay",
 ]
 
-#: Default cap on the frames of one run (each a kept step of the trajectories).
+#: Default cap on the frames of one run (each a kept step of the trajectories), and on the
+#: points of each of its time series (each a step).
 MAX_FRAMES = 600
 #: Default cap on the size of the page's data, megabytes (10^6 bytes).
 MAX_MB = 10.0
-#: The fewest frames a run may have; a batch that does not fit at this rate is refused.
+#: The fewest frames a run may have (or all its kept steps, if fewer); a batch that does
+#: not fit at this rate is refused.
 MIN_FRAMES = 20
 
 #: The per-step series drawn in the time plots, in the page's order.
@@ -65,7 +71,7 @@ RUN_METRICS = (
 )
 
 
-# -- generic pieces of a self-contained page ----------------------------------------------
+# -- arrays in the page ------------------------------------------------------------------
 def float32_base64(values: Any) -> str:
     """An array as base64 of its little-endian float32 bytes, in C order (NaN and
     infinities kept; JavaScript reads it into a ``Float32Array``).
@@ -112,13 +118,17 @@ def frame_rows(n_rows: int, max_frames: int) -> np.ndarray:
 
 
 def frames_per_run(
-    n_runs: int, values_per_frame: int, max_frames: int = MAX_FRAMES, max_mb: float = MAX_MB
+    n_runs: int,
+    values_per_frame: int,
+    max_frames: int = MAX_FRAMES,
+    max_mb: float = MAX_MB,
+    min_frames: int = MIN_FRAMES,
 ) -> int:
     """The most frames each run may have for the page's data to fit in ``max_mb``.
 
     A frame of a run holds ``values_per_frame`` float32 numbers, 16/3 bytes each in
-    base64; the result is ``min(max_frames, floor(max_mb * 1e6 / (n_runs *
-    values_per_frame * 16/3)))``.
+    base64 (the map's positions at a frame, and the time series at as many points); the
+    result is ``min(max_frames, floor(max_mb * 1e6 / (n_runs * values_per_frame * 16/3)))``.
 
     Parameters
     ----------
@@ -130,6 +140,8 @@ def frames_per_run(
         Cap per run.
     max_mb : float, default MAX_MB
         Cap on the data, 10^6 bytes.
+    min_frames : int, default MIN_FRAMES
+        The fewest frames a run may have (``min(MIN_FRAMES, R)`` for R kept steps).
 
     Returns
     -------
@@ -139,15 +151,22 @@ def frames_per_run(
     Raises
     ------
     FieldError
-        If fewer than :data:`MIN_FRAMES` frames per run would fit (field ``runs``).
+        If fewer than ``min_frames`` frames per run would fit: field ``runs`` (naming how
+        many runs would fit), or ``max_mb`` if not even one run fits.
     """
     per_frame = n_runs * values_per_frame * 16 / 3
     fit = int(max_mb * 1e6 // per_frame)
-    if fit < MIN_FRAMES:
-        most = max(1, int(max_mb * 1e6 // (MIN_FRAMES * values_per_frame * 16 / 3)))
+    if fit < min_frames:
+        one_run = min_frames * values_per_frame * 16 / 3
+        most = int(max_mb * 1e6 // one_run)
+        if most < 1:
+            raise FieldError(
+                "max_mb", f"no run fits in a page of {max_mb:g} MB: one run at {min_frames} "
+                f"frames takes {one_run / 1e6:.3g} MB; give a larger size limit",
+            )  # fmt: skip
         raise FieldError(
             "runs",
-            f"{n_runs} runs do not fit in a page of {max_mb:g} MB at {MIN_FRAMES} frames per "
+            f"{n_runs} runs do not fit in a page of {max_mb:g} MB at {min_frames} frames per "
             f"run; choose at most {most} runs, or a larger size limit",
         )
     return min(max_frames, fit)
@@ -157,7 +176,8 @@ def frames_per_run(
 def load_mission_folder(folder: str | os.PathLike[str]) -> MissionResult | GroupMissionResult:
     """The result in a ``crlbswarm simulate`` folder: one target
     (:func:`~crlbswarm.results.load_results`), or several (the ``group<g>/`` folders and
-    the whole scenario).
+    the whole scenario). ``crlbswarm replay``, ``plot`` and ``animate`` read their
+    ``RUNS_DIR`` with it.
 
     Parameters
     ----------
@@ -172,9 +192,12 @@ def load_mission_folder(folder: str | os.PathLike[str]) -> MissionResult | Group
     Raises
     ------
     FieldError
-        If the folder holds no complete result (field ``folder``).
+        If the folder does not exist, is not a folder or holds no complete result (field
+        ``folder``).
     """
     path = Path(folder)
+    if not path.exists():
+        raise FieldError("folder", f"{str(path)!r} does not exist")
     if not path.is_dir():
         raise FieldError("folder", f"{str(path)!r} is not a folder")
     if (path / "trajectories.npz").is_file() or not (path / "group0").is_dir():
@@ -253,10 +276,10 @@ def _finite(values: Any) -> list[Any]:
 
 
 def _series(group: MissionResult, runs: list[int], steps: np.ndarray) -> dict[str, np.ndarray]:
-    """The time series at the frames, shape (runs, frames): the CRLB, cost and eta at the
-    frames' steps (the cost, defined at steps 0..K-1, is NaN at the last step); the
-    clearance and separation the smallest since the previous frame (at frame 0, its step),
-    so that no near miss between two frames is lost."""
+    """The time series at their points (``steps``, among every step), shape (runs, points):
+    the CRLB, cost and eta at those steps (the cost, defined at steps 0..K-1, is NaN at the
+    last step); the clearance and separation the smallest since the previous point (at
+    point 0, its step), so that no near miss between two points is lost."""
     cost = np.concatenate([group.cost, np.full((group.n_runs, 1), np.nan)], axis=1)
     out = {
         "crlb": group.crlb[runs][:, steps],
@@ -290,17 +313,18 @@ def interval_minima(values: np.ndarray, steps: np.ndarray) -> np.ndarray:
 
 
 def _group_data(
-    group: MissionResult, members: list[int], runs: list[int], rows: np.ndarray
+    group: MissionResult,
+    members: list[int],
+    runs: list[int],
+    rows: np.ndarray,
+    points: np.ndarray,
 ) -> dict[str, Any]:
-    """One group's part of the page data (arrays as base64 float32)."""
-    if group.positions is None:
-        raise FieldError(
-            "result",
-            "has no trajectories (simulated with keep_trajectories=False or "
-            "--no-trajectories): nothing to replay",
-        )
+    """One group's part of the page data (arrays as base64 float32): positions, target and
+    estimate at the frames (``rows`` of the kept steps), the series at their ``points``
+    (steps)."""
+    assert group.positions is not None
     steps = group.trajectory_steps[rows]
-    series = _series(group, runs, steps)
+    series = _series(group, runs, points)
     sc = group.scenario
     slots = np.asarray(sc.slots) - np.asarray(sc.target, dtype=float)
     moving = _moving(group)
@@ -312,10 +336,14 @@ def _group_data(
             name: float32_base64(np.stack([np.fmin.reduce(v, axis=0), np.fmax.reduce(v, axis=0)]))
             for name, v in series.items()
         }
+    metrics = {name: group.metrics[name][runs] for name in RUN_METRICS}
+    converged = metrics["outcome"] == "converged"  # (a time only for the converged runs)
+    metrics["convergence_time_s"] = np.where(converged, metrics["convergence_time_s"], np.nan)
     return {
         "uavs": members,
         "leader": members[int(sc.uavs.leader)],
         "bound": float(group.bound),
+        **{f"{key}Label": text for key, text in formation_labels(sc).items()},
         "target0": [float(v) for v in sc.target],
         "slotOffsets": np.round(slots, 6).tolist(),
         "targetMoving": moving,
@@ -324,7 +352,7 @@ def _group_data(
         "positions": float32_base64(group.positions[np.asarray(runs)[:, None], rows]),
         "series": {name: float32_base64(v) for name, v in series.items()},
         "envelope": envelope,
-        "metrics": {name: _finite(group.metrics[name][runs]) for name in RUN_METRICS},
+        "metrics": {name: _finite(values) for name, values in metrics.items()},
     }
 
 
@@ -340,8 +368,10 @@ def replay_data(
 
     Each run keeps the same frames: :func:`frame_rows` over the kept steps of the
     trajectories (``result.trajectory_steps``), at most ``max_frames`` and at most what
-    fits in ``max_mb`` over all the runs (:func:`frames_per_run`). Positions, target,
-    estimate and the time series are taken at those steps.
+    fits in ``max_mb`` over all the runs (:func:`frames_per_run`); positions, target and
+    estimate are taken at those steps. The time series have their own points, as many at
+    most, chosen by :func:`frame_rows` among *every* step (so that trajectories kept every
+    few steps still get detailed time plots).
 
     Parameters
     ----------
@@ -372,12 +402,20 @@ def replay_data(
 
     groups = _groups(result)
     first = groups[0][0]
+    if any(group.positions is None for group, _ in groups):
+        raise FieldError(
+            "result",
+            "has no trajectories (simulated with keep_trajectories=False or "
+            "--no-trajectories): nothing to replay",
+        )
     chosen = _run_indices(runs, first)
     cap = count(max_frames, "max_frames", MIN_FRAMES, 10**7)
     limit = positive_scalar(max_mb, "max_mb")
     kept = first.trajectory_steps
-    per_run = frames_per_run(len(chosen), _values_per_frame(groups), cap, limit)
+    fewest = min(MIN_FRAMES, kept.shape[0])
+    per_run = frames_per_run(len(chosen), _values_per_frame(groups), cap, limit, fewest)
     rows = frame_rows(kept.shape[0], per_run)
+    points = frame_rows(first.time.shape[0], per_run)  # the series' steps (every step there)
     sc = result.scenario
     obstacles = sc.obstacle_set
     name = sc.name
@@ -394,11 +432,15 @@ def replay_data(
             "keptSteps": int(kept.shape[0]),
             "frameStride": int(rows[1] - rows[0]) if rows.shape[0] > 1 else 1,
             "frames": int(rows.shape[0]),
+            "seriesStride": int(points[1] - points[0]) if points.shape[0] > 1 else 1,
+            "seriesPoints": int(points.shape[0]),
             "maxFrames": cap,
             "maxMB": limit,
         },
         "frameStep": kept[rows].tolist(),
         "frameTime": np.round(first.time[kept[rows]], 9).tolist(),
+        "seriesStep": points.tolist(),
+        "seriesTime": np.round(first.time[points], 9).tolist(),
         "runIndex": chosen,
         "seed": [int(s) for s in first.seeds[chosen]],
         "obstacles": {
@@ -407,7 +449,7 @@ def replay_data(
         },
         "safetyRadius": float(sc.control.safety_radius),
         "minSeparation": float(sc.safety.min_separation),
-        "groups": [_group_data(g, members, chosen, rows) for g, members in groups],
+        "groups": [_group_data(g, members, chosen, rows, points) for g, members in groups],
     }
 
 
@@ -485,7 +527,7 @@ def write_replay(
     result : MissionResult or GroupMissionResult
         The missions, with their trajectories.
     path : str or path-like
-        The HTML file; its folder must exist.
+        The HTML file (``.html`` or ``.htm``); its folder must exist.
     overwrite : bool, default False
         Replace an existing file.
     runs : iterable of int, optional
@@ -505,10 +547,11 @@ def write_replay(
     Raises
     ------
     FieldError
-        If the file exists (and not ``overwrite``) or cannot be written (field ``path``),
-        or as :func:`replay_data`; nothing is written then.
+        If the file does not end in ``.html`` or ``.htm``, exists (and not ``overwrite``)
+        or cannot be written (field ``path``), or as :func:`replay_data`; nothing is
+        written then.
     """
-    dest = check_output_file(path, "path", overwrite=overwrite)
+    dest = check_output_file(check_page_path(path, "path"), "path", overwrite=overwrite)
     page = replay_html(result, runs=runs, max_frames=max_frames, max_mb=max_mb, title=title)
     write_text(dest, page)
     return dest

@@ -14,7 +14,9 @@ A value that does not exist for a run is null in the dataset (the convergence ti
 run that did not converge, the clearance without obstacles; NaN and infinities read from a
 file are treated alike): the page shows it as a dash, sorts it last in either direction,
 and leaves it out of the medians, box plots and histograms, saying how many runs have no
-value.
+value. The convergence time is taken only from the runs whose outcome is ``converged``: a
+run that collided (or timed out) after its CRLB settled has a time in the dataset, but none
+in the page.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from . import __version__, _validation as _v
 from .errors import FieldError, one_line
 from .output import check_output_file, write_text
 from .results import CENTROID_TOL, CRLB_TOL, OUTCOMES, PROGRESS_TOL
-from .webpage import html_page, json_script, package_text
+from .webpage import check_page_path, html_page, json_script, package_text
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -92,8 +94,10 @@ class Distribution:
 DISTRIBUTIONS = (
     Distribution("final_crlb_ratio", "final CRLB / bound", "CRLB/bound", "", "max",
                  "not finite", True, 6),
-    Distribution("convergence_time_s", "convergence time", "conv. time", "s", "max",
-                 "the run did not converge", False, 4),
+    Distribution("convergence_time_s", "convergence time of the converged runs", "conv. time",
+                 "s", "max", "the run's outcome is not converged (it did not converge, or it "
+                 "collided: a run that collided after its CRLB settled has no time here)",
+                 False, 4),
     Distribution("min_clearance_m", "smallest clearance to an obstacle", "clearance", "m",
                  "min", "no obstacles", False, 4),
     Distribution("min_separation_m", "smallest separation between two UAVs", "separation",
@@ -121,7 +125,6 @@ _MAX_SPEC_BYTES = 10 * 2**20
 _VARIANT_FOLDER = re.compile(r"variant=(\d+)")
 
 
-# -- generic pieces of a self-contained page ------------------------------------------------
 # -- reading a campaign folder ----------------------------------------------------------------
 def _campaign_folder(campaign_dir: str | os.PathLike[str]) -> Path:
     """The folder, checked to hold a campaign (``spec.json`` and ``variants.parquet``)."""
@@ -250,6 +253,9 @@ def _variant_runs(files: list[Path], fields: list[str]) -> dict[str, np.ndarray]
                          "columns of a campaign (seed, outcome and the metrics)")  # fmt: skip
     if not out:
         return {"seed": np.zeros(0, dtype=np.int64), "outcome": np.zeros(0, dtype=object)}
+    if "convergence_time_s" in out:  # a time only for the runs whose outcome is converged
+        converged = out["outcome"].astype(str) == "converged"
+        out["convergence_time_s"] = np.where(converged, out["convergence_time_s"], np.nan)
     order = np.argsort(out["seed"], kind="stable")
     return {n: np.where(np.isfinite(a), a, np.nan)[order] if a.dtype.kind == "f" else a[order]
             for n, a in out.items()}  # fmt: skip
@@ -479,7 +485,7 @@ def write_report(
     campaign_dir : str or path-like
         The output folder of ``crlbswarm sweep``.
     out : str or path-like
-        The HTML file to write; its folder must exist.
+        The HTML file to write (``.html`` or ``.htm``); its folder must exist.
     overwrite : bool, default False
         Replace ``out`` if it exists.
     max_run_rows : int, default MAX_RUN_ROWS
@@ -495,10 +501,11 @@ def write_report(
     Raises
     ------
     FieldError
-        Naming ``campaign_dir`` (no readable campaign) or ``out`` (a folder, an existing file
-        without ``overwrite``, a missing or unwritable folder).
+        Naming ``campaign_dir`` (no readable campaign) or ``out`` (a suffix other than
+        ``.html`` or ``.htm``, a folder, an existing file without ``overwrite``, a missing
+        or unwritable folder).
     """
-    dest = check_output_file(out, "out", overwrite=overwrite)
+    dest = check_output_file(check_page_path(out, "out"), "out", overwrite=overwrite)
     page = report_html(campaign_dir, max_run_rows=max_run_rows)
     write_text(dest, page)
     if on_write is not None:

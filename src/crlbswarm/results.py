@@ -118,6 +118,13 @@ class MissionResult:
         simulator's kernel computes it at every step; when it is not given (``None``, e.g.
         a result saved by an older build) it is computed from ``centroid`` and ``target``,
         with the same bits.
+    metrics : dict of str to ndarray, shape (B,)
+        Per-run metrics, computed once (the columns of ``metrics.csv``): ``seed``,
+        ``outcome`` (:data:`OUTCOMES`), ... ``convergence_time_s`` is the first time from
+        which the CRLB stays within ``1 + CRLB_TOL`` of ``bound`` and the centroid within
+        ``CENTROID_TOL`` of its place until the end, for at least ``time.hold`` seconds
+        (NaN if never): a run that settled and yet collided has a convergence time too,
+        so count converged runs by ``outcome == "converged"``, not by this column.
     """
 
     scenario: Scenario
@@ -408,9 +415,10 @@ class MissionResult:
         Returns
         -------
         dict
-            Scenario name, number of runs, steps, the bound, the count of each outcome, and
+            Scenario name, number of runs, steps, the bound, the number of runs whose
+            outcome is ``converged`` (``converged_runs``), the count of each outcome, and
             for each numeric metric its min, mean and max over the runs (NaN-aware for the
-            convergence time, with the number of runs that converged).
+            convergence time).
         """
         out: dict[str, Any] = {
             "scenario": self.scenario.name,
@@ -418,7 +426,7 @@ class MissionResult:
             "steps": int(self.time.shape[0] - 1),
             "duration_s": float(self.time[-1]),
             "bound_m2": float(self.bound),
-            "converged_runs": int(np.sum(np.isfinite(self.metrics["convergence_time_s"]))),
+            "converged_runs": int(np.sum(self.metrics["outcome"] == "converged")),
             "outcomes": self.outcome_counts,
         }
         design = self.scenario.formation_design
@@ -770,8 +778,12 @@ def _concatenate(parts: list[MissionResult], path: Path) -> MissionResult:
 
 
 def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None:
-    """The arrays a result of ``scenario`` must have, with their shapes (B runs)."""
+    """The arrays a result of ``scenario`` must have, with their shapes (B runs); a bound
+    finite and positive, a trajectory stride at least 1."""
     k1, m = scenario.time.steps + 1, scenario.uavs.count
+    if arrays["trajectory_stride"] < 1:
+        raise FieldError("folder", f"{str(npz)!r}: trajectory_stride is "
+                         f"{arrays['trajectory_stride']}, expected at least 1")  # fmt: skip
     seeds = arrays["seeds"]
     b = -1 if seeds is None or seeds.ndim != 1 else seeds.shape[0]
     shapes = {
@@ -795,3 +807,6 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
                 f"{str(npz)!r}: array {name!r} is {got}, expected shape {shape} for its "
                 f"scenario.toml ({m} UAVs, {k1 - 1} steps)",
             )
+    bound = float(arrays["bound"])
+    if not (np.isfinite(bound) and bound > 0.0):
+        raise FieldError("folder", f"{str(npz)!r}: bound is {bound}, expected a finite CRLB > 0")

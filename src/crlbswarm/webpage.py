@@ -12,11 +12,45 @@ from __future__ import annotations
 
 import html
 import json
+import os
 from collections.abc import Sequence
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
-__all__ = ["html_page", "json_script", "package_text"]
+from .errors import FieldError
+
+__all__ = ["PAGE_SUFFIXES", "check_page_path", "html_page", "json_script", "package_text"]
+
+#: The file suffixes of a page (any case).
+PAGE_SUFFIXES = (".html", ".htm")
+
+
+def check_page_path(path: str | os.PathLike[str], field: str) -> Path:
+    """A page's file name, checked to end in ``.html`` or ``.htm`` (so that a browser opens
+    it as a page).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to write.
+    field : str
+        The argument's name, for the error.
+
+    Returns
+    -------
+    pathlib.Path
+        The path.
+
+    Raises
+    ------
+    FieldError
+        If the suffix is another (naming ``field``).
+    """
+    dest = Path(path)
+    if dest.suffix.lower() not in PAGE_SUFFIXES:
+        raise FieldError(field, f"expected a file name ending in .html or .htm, got {str(dest)!r}")
+    return dest
 
 
 def package_text(name: str) -> str:

@@ -15,8 +15,10 @@
     return new Float32Array(bytes.buffer);
   }
 
-  const T = D.frameTime; // time of each frame, s
+  const T = D.frameTime; // time of each frame (the map), s
   const F = T.length; // frames per run
+  const TS = D.seriesTime; // time of each point of the time series (their own sampling), s
+  const S = TS.length; // points per run and series
   const NR = D.runIndex.length; // runs in the page
   const SERIES = ["crlb", "cost", "eta", "clearance", "separation"];
   const groups = D.groups.map(function (g) {
@@ -28,6 +30,7 @@
     }
     return {
       uavs: g.uavs, M: g.uavs.length, leader: g.leader, bound: g.bound,
+      boundLabel: g.boundLabel, formationLabel: g.formationLabel,
       slotOffsets: g.slotOffsets, moving: g.targetMoving, target: f32(g.target),
       estimate: f32(g.estimate), pos: f32(g.positions), series: series, envelope: envelope,
       metrics: g.metrics,
@@ -66,17 +69,20 @@
   // -- state ----------------------------------------------------------------------------
   const state = { run: 0, time: T[0], playing: false, speed: 10, last: null };
 
-  function frameAt(t) { // the frame at or before t and the weight of the next one
-    if (F === 1 || t <= T[0]) return { i: 0, w: 0 };
-    if (t >= T[F - 1]) return { i: F - 1, w: 0 };
+  function sampleAt(times, t) { // the sample at or before t and the weight of the next one
+    const n = times.length;
+    if (n === 1 || t <= times[0]) return { i: 0, w: 0 };
+    if (t >= times[n - 1]) return { i: n - 1, w: 0 };
     let lo = 0;
-    let hi = F - 1;
+    let hi = n - 1;
     while (hi - lo > 1) {
       const mid = (lo + hi) >> 1;
-      if (T[mid] <= t) lo = mid; else hi = mid;
+      if (times[mid] <= t) lo = mid; else hi = mid;
     }
-    return { i: lo, w: (t - T[lo]) / (T[lo + 1] - T[lo]) };
+    return { i: lo, w: (t - times[lo]) / (times[lo + 1] - times[lo]) };
   }
+  function frameAt(t) { return sampleAt(T, t); } // the map's frames
+  function pointAt(t) { return sampleAt(TS, t); } // the time series' points
   function lerp2(arr, base, stride, fr) { // [x, y] at frame fr of a (frames, ..., 2) block
     const a = base + fr.i * stride;
     if (fr.w === 0) return [arr[a], arr[a + 1]];
@@ -89,12 +95,13 @@
     return lerp2(g.target, r * F * 2, 2, fr);
   }
   function estimateAt(g, r, fr) { return g.estimate ? lerp2(g.estimate, r * F * 2, 2, fr) : null; }
-  function seriesAt(g, name, r, fr) {
+  function seriesAt(g, name, r, t) { // a series at time t (between points: linear)
     const s = g.series[name];
-    const a = s[r * F + fr.i];
-    if (fr.w === 0) return a;
-    const b = s[r * F + fr.i + 1];
-    return isFinite(a) && isFinite(b) ? a + (b - a) * fr.w : a;
+    const pt = pointAt(t);
+    const a = s[r * S + pt.i];
+    if (pt.w === 0) return a;
+    const b = s[r * S + pt.i + 1];
+    return isFinite(a) && isFinite(b) ? a + (b - a) * pt.w : a;
   }
 
   // -- map ------------------------------------------------------------------------------
@@ -199,13 +206,15 @@
       ctx.fill();
     }
   }
-  function byAngle(points) { // the points in order of angle around their centroid
+  function byAngle(points) { // in order of angle around their centroid, the nearer first on
+    // a tie: crlbswarm.geometry.outline_order, a polygon that never crosses itself
     let cx = 0;
     let cy = 0;
     for (const p of points) { cx += p[0]; cy += p[1]; }
     cx /= points.length; cy /= points.length;
     return points.slice().sort(function (p, q) {
-      return Math.atan2(p[1] - cy, p[0] - cx) - Math.atan2(q[1] - cy, q[0] - cx);
+      const a = Math.atan2(p[1] - cy, p[0] - cx) - Math.atan2(q[1] - cy, q[0] - cx);
+      return a !== 0 ? a : Math.hypot(p[0] - cx, p[1] - cy) - Math.hypot(q[0] - cx, q[1] - cy);
     });
   }
   function polygon(ctx, points) {
@@ -388,8 +397,12 @@
   wrap.addEventListener("pointercancel", endDrag);
 
   // -- time plots -----------------------------------------------------------------------
+  function oneOrEach(key, each) { // the groups' common label, or a word for all of them
+    const labels = new Set(groups.map(function (g) { return g[key]; }));
+    return labels.size === 1 ? groups[0][key] : each;
+  }
   const PLOTS = [
-    { key: "crlb", title: "CRLB (m²); dashed: bound", log: true },
+    { key: "crlb", title: "CRLB (m²); dashed: " + oneOrEach("boundLabel", "each group's bound"), log: true },
     { key: "cost", title: "control cost L_tot, eq. (15)", log: true },
     { key: "eta", title: "scaling η", log: false, fixed: [0, 1.05] },
     { key: "clearance", title: "min clearance (m); dotted: safety radius", log: false,
@@ -446,9 +459,9 @@
     };
     groups.forEach(function (g) {
       const s = g.series[p.key];
-      for (let i = 0; i < F; i++) take(s[state.run * F + i]);
+      for (let i = 0; i < S; i++) take(s[state.run * S + i]);
       const env = g.envelope[p.key];
-      if (env) for (let i = 0; i < 2 * F; i++) take(env[i]);
+      if (env) for (let i = 0; i < 2 * S; i++) take(env[i]);
       if (p.key === "crlb") take(g.bound);
     });
     if (!isFinite(lo)) return null;
@@ -471,10 +484,10 @@
   function seriesLine(ctx, p, arr, off) {
     ctx.beginPath();
     let on = false;
-    for (let i = 0; i < F; i++) {
+    for (let i = 0; i < S; i++) {
       const v = arr[off + i];
       if (!isFinite(v) || (p.log && v <= 0)) { on = false; continue; }
-      const x = timeToX(p, T[i]);
+      const x = timeToX(p, TS[i]);
       const y = yOf(p, v);
       if (on) ctx.lineTo(x, y); else { ctx.moveTo(x, y); on = true; }
     }
@@ -536,16 +549,16 @@
       if (env) { // the batch: min..max over the runs
         ctx.beginPath();
         let on = false;
-        for (let i = 0; i < F; i++) {
-          const v = env[F + i];
+        for (let i = 0; i < S; i++) {
+          const v = env[S + i];
           if (!isFinite(v) || (p.log && v <= 0)) continue;
-          const x = timeToX(p, T[i]);
+          const x = timeToX(p, TS[i]);
           if (on) ctx.lineTo(x, yOf(p, v)); else { ctx.moveTo(x, yOf(p, v)); on = true; }
         }
-        for (let i = F - 1; i >= 0; i--) {
+        for (let i = S - 1; i >= 0; i--) {
           const v = env[i];
           if (!isFinite(v) || (p.log && v <= 0)) continue;
-          ctx.lineTo(timeToX(p, T[i]), yOf(p, v));
+          ctx.lineTo(timeToX(p, TS[i]), yOf(p, v));
         }
         ctx.closePath();
         ctx.fillStyle = groups.length > 1 ? groupColour(gi) + "22" : "rgba(0,0,0,0.09)";
@@ -566,7 +579,7 @@
     groups.forEach(function (g, gi) {
       ctx.strokeStyle = groupColour(gi);
       ctx.lineWidth = 1.5;
-      seriesLine(ctx, p, g.series[p.key], state.run * F);
+      seriesLine(ctx, p, g.series[p.key], state.run * S);
       ctx.stroke();
     });
     ctx.restore();
@@ -584,7 +597,6 @@
     }
   }
   function drawPlots() {
-    const fr = frameAt(state.time);
     const dpr = window.devicePixelRatio || 1;
     for (const p of PLOTS) {
       if (p.stale) drawPlotLayer(p);
@@ -596,7 +608,7 @@
       ctx.strokeStyle = "#d62728";
       ctx.lineWidth = 1.3;
       ctx.beginPath(); ctx.moveTo(x, PAD.t); ctx.lineTo(x, p.H - PAD.b); ctx.stroke();
-      const values = groups.map(function (g) { return seriesAt(g, p.key, state.run, fr); });
+      const values = groups.map(function (g) { return seriesAt(g, p.key, state.run, state.time); });
       if (p.range) {
         values.forEach(function (v, gi) {
           if (!isFinite(v) || (p.log && v <= 0)) return;
@@ -621,12 +633,14 @@
     el("subtitle").textContent = D.description;
     const dec = D.decimation;
     const every = function (n, what) { return n === 1 ? "every " + what : "every " + n + " " + what + "s"; };
-    el("note").textContent = "Frames: " + dec.frames + " per run, at " + every(dec.frameStride, "kept step") +
+    el("note").textContent = "Map: " + dec.frames + " frames per run, at " + every(dec.frameStride, "kept step") +
       " of " + dec.keptSteps + " (trajectories kept at " + every(dec.trajectoryStride, "step") +
-      " of " + D.step + " s) and at the last; at most " + dec.maxFrames + " frames per run and " +
-      dec.maxMB + " MB of data. Between frames the map interpolates linearly. The time plots " +
-      "show the CRLB, cost and η at the frames, the clearance and separation as their " +
-      "smallest since the previous frame; the run panel's figures are over every step" +
+      " of " + D.step + " s) and at the last; between frames the map interpolates linearly. " +
+      "Time plots: " + dec.seriesPoints + " points per run, at " + every(dec.seriesStride, "step") +
+      " of " + (D.steps + 1) + " and at the last, whatever the trajectories kept: the CRLB, cost " +
+      "and η at those steps, the clearance and separation as their smallest since the previous " +
+      "point. At most " + dec.maxFrames + " frames (and points) per run and " + dec.maxMB +
+      " MB of data. The run panel's figures are over every step" +
       (NR > 1 ? "; grey band: smallest to largest over the " + NR + " runs" : "") + ". " +
       D.generator + ".";
     slider.max = String(F - 1);
@@ -652,7 +666,7 @@
     const followers = UAV_COLOURS.filter(function (c, u) { return !LEADERS.has(u); }).slice(0, 8);
     if (followers.length) item("background:linear-gradient(90deg," + followers.join(",") + ")", "followers");
     item("border-top:1.5px solid #222;height:0", "formation");
-    item("border-top:1.5px dashed #d62728;height:0", "F* (CRLB-optimal)");
+    item("border-top:1.5px dashed #d62728;height:0", oneOrEach("formationLabel", "each group's formation over its target"));
     item("background:#111;clip-path:polygon(50% 0,61% 35%,98% 35%,68% 57%,79% 91%,50% 70%,21% 91%,32% 57%,2% 35%,39% 35%);width:12px;height:12px", "target");
     if (groups.some(function (g) { return g.estimate; })) item("border-top:2px solid #c80078;height:0;width:12px", "estimate (×)");
     if (D.obstacles.rectangles.length + D.obstacles.circles.length) item("background:rgba(128,128,128,0.78)", "obstacle");
@@ -662,14 +676,16 @@
     const r = state.run;
     el("time-label").textContent = "t = " + state.time.toFixed(1) + " s / " + T[F - 1].toFixed(1) +
       " s · frame " + (fr.i + 1) + "/" + F;
-    const eta = groups.map(function (g) { return fmt(seriesAt(g, "eta", r, fr)); }).join(", ");
+    const eta = groups.map(function (g) { return fmt(seriesAt(g, "eta", r, state.time)); }).join(", ");
     el("map-overlay").textContent = "t = " + state.time.toFixed(1) + " s   η = " + eta;
     const rows = [["run", D.runIndex[r] + " (seed " + D.seed[r] + ")"]];
     groups.forEach(function (g, gi) {
       const pre = groups.length > 1 ? "group " + gi + ": " : "";
       const m = g.metrics;
       rows.push([pre + "outcome", m.outcome[r]]);
-      rows.push([pre + "convergence time", m.convergence_time_s[r] === null ? "–" : fmt(m.convergence_time_s[r]) + " s"]);
+      // (a time only for a run whose outcome is converged: a collided run may have settled)
+      rows.push([pre + "convergence time", m.outcome[r] !== "converged" ? "– (not converged)"
+        : m.convergence_time_s[r] === null ? "–" : fmt(m.convergence_time_s[r]) + " s"]);
       rows.push([pre + "final CRLB / bound", fmt(m.final_crlb_ratio[r])]);
       rows.push([pre + "min clearance (every step)", m.min_clearance_m[r] === null ? "no obstacles" : fmt(m.min_clearance_m[r]) + " m"]);
       rows.push([pre + "min separation (every step)", fmt(m.min_separation_m[r]) + " m"]);
@@ -697,7 +713,7 @@
       el("time-label").textContent = "t = " + state.time.toFixed(1) + " s / " + T[F - 1].toFixed(1) +
         " s · frame " + (fr.i + 1) + "/" + F;
       el("map-overlay").textContent = "t = " + state.time.toFixed(1) + " s   η = " +
-        groups.map(function (g) { return fmt(seriesAt(g, "eta", r, fr)); }).join(", ");
+        groups.map(function (g) { return fmt(seriesAt(g, "eta", r, state.time)); }).join(", ");
     }
   }
   function tick(now) {
@@ -719,6 +735,7 @@
   const api = {
     nRuns: NR,
     nFrames: F,
+    nSeriesPoints: S,
     nUavs: NU,
     duration: T[F - 1],
     data: D,
@@ -732,6 +749,7 @@
     },
     frame: function () { return frameAt(state.time).i; },
     frameTimes: function () { return T.slice(); },
+    seriesTimes: function () { return TS.slice(); },
     setFrame: function (i) { return api.setTime(T[Math.min(Math.max(Math.round(i), 0), F - 1)]); },
     run: function () { return state.run; },
     runIndex: function () { return D.runIndex[state.run]; },
@@ -778,9 +796,8 @@
       return groups.map(function (g) { return estimateAt(g, state.run, fr); });
     },
     seriesValues: function () {
-      const fr = frameAt(state.time);
       const out = {};
-      for (const name of SERIES) out[name] = groups.map(function (g) { return seriesAt(g, name, state.run, fr); });
+      for (const name of SERIES) out[name] = groups.map(function (g) { return seriesAt(g, name, state.run, state.time); });
       return out;
     },
     uavColours: function () { return UAV_COLOURS.slice(); },
