@@ -220,7 +220,9 @@ def test_paper_metrics_and_summary(paper):
     json.dumps(summary)
     assert summary["runs"] == 50
     assert summary["steps"] == 1500
-    assert summary["converged_runs"] == 50
+    # (runs whose outcome is converged: a run may settle, and so have a convergence time, yet
+    # collide)
+    assert summary["converged_runs"] == list(res.metrics["outcome"]).count("converged")
     assert summary["min_clearance_m"]["min"] == pytest.approx(res.clearance.min())
 
 

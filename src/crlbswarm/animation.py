@@ -1,8 +1,9 @@
 """Animation of one run of a mission: an MP4 or GIF file (``crlbswarm animate``).
 
 Each frame shows the obstacles, every UAV's track so far, the UAVs (the leader in red), the
-formation polygon (the UAVs in order of their angle around the centroid, so that it never
-crosses itself), the CRLB-optimal formation F* over the target, the target and, with
+formation polygon (:func:`crlbswarm.geometry.outline_order`, so that it never crosses
+itself), the formation flown over the target (F*, or the constrained design when F* is
+blocked; named by :func:`crlbswarm.design.formation_labels`), the target and, with
 estimation on, the UAVs' estimate of it; a caption gives the time, the scaling factor eta,
 the CRLB and its ratio to the bound.
 
@@ -195,6 +196,9 @@ def _parts(result: MissionResult | GroupMissionResult) -> list[tuple[MissionResu
     """Each result to draw and the words of its title that name its UAVs ("" for one
     target)."""
     if isinstance(result, GroupMissionResult):
+        steps = result.groups[0].trajectory_steps
+        if any(not np.array_equal(g.trajectory_steps, steps) for g in result.groups):
+            raise FieldError("result", "its groups keep their trajectories at other steps")
         return [
             (group, f"group {g}: UAVs {', '.join(str(int(u) + 1) for u in members)} of "
              f"{result.scenario.uavs.count}, ")
