@@ -210,7 +210,8 @@ def test_kill_9_at_random_moments_leaves_absent_complete_or_resumable(tmp_path):
             else:
                 time.sleep(rng.uniform(0.3, 8.0))
             tree = process_tree(proc.pid) - {proc.pid}
-            os.kill(proc.pid, signal.SIGKILL)
+            if proc.poll() is None:  # (it may have finished first: a reaped pid is gone)
+                os.kill(proc.pid, signal.SIGKILL)
             proc.wait(timeout=30)
             lingering = wait_gone(tree, 60)
         finally:
