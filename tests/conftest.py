@@ -23,8 +23,14 @@ None of crlbswarm's code is used, except that the tests compare against it.
 
 from __future__ import annotations
 
-import math
 import os
+
+# One BLAS thread per test process (set before NumPy loads): pytest-xdist runs one worker
+# per core, and BLAS threads spinning against the other worker made small SciPy solves
+# (SLSQP in the constrained design) several times slower.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import math
 from types import SimpleNamespace
 
 import numpy as np

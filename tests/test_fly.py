@@ -126,7 +126,9 @@ def test_ctrl_c_stops_every_process_and_keeps_what_was_recorded(flight):
     proc = launch(key, path, tmp / "out", "--mode", "realtime")
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
-    status, _, err = finish(proc, 30.0)
+    # (a hang guard, not a speed test: members compiling on a cold cache on a loaded
+    # machine take their time to stop, and the launcher kills what is left after its grace)
+    status, _, err = finish(proc, 90.0)
     assert status == 130
     assert "interrupted" in err
     assert members(key) == []
