@@ -80,7 +80,15 @@ def launch(key: str, scenario: Path, out: Path, *extra: str) -> subprocess.Popen
     """``crlbswarm fly`` in a process of its own; returns once the flight is under way."""
     cmd = [sys.executable, "-m", "crlbswarm.cli", "fly", str(scenario), "--out", str(out),
            "--key", key, *extra]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # (SIGINT's default action in the launcher: a pytest-xdist worker ignores SIGINT, and a
+    # child inherits that)
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     assert proc.stdout is not None
     for line in proc.stdout:
         if line.startswith("flying:"):

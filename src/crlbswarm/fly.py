@@ -583,7 +583,8 @@ def fly(
             cmd = _member_command(scenario_file, run.seed, options, endpoints[i],
                                   [*endpoints[:i], *options.connect], role)  # fmt: skip
             name = member_name(None if i == 0 else i - 1)
-            procs[name] = subprocess.Popen(cmd, start_new_session=True)
+            procs[name] = subprocess.Popen(cmd, start_new_session=True,
+                                           preexec_fn=_default_sigint)  # fmt: skip
         _wait(procs, options.timeout + LINGER)
     except KeyboardInterrupt:
         _stop(procs, SHUTDOWN_GRACE)
@@ -592,6 +593,13 @@ def fly(
         _stop(procs, 1.0)
         shutil.rmtree(folder, ignore_errors=True)
     return {name: int(p.returncode) for name, p in procs.items()}
+
+
+def _default_sigint() -> None:
+    """In a member, before it starts: SIGINT's default action, even if the launcher was
+    started with SIGINT ignored (which children inherit), since the launcher stops its
+    members with SIGINT."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _compile_recorder(run: FlyRun) -> None:
