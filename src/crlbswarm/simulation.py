@@ -53,11 +53,14 @@ __all__ = [
     "MAX_SEED",
     "WIDE_UAVS",
     "check_memory",
+    "kernel_arguments",
     "layer_markers",
     "run_keys",
     "simulate",
     "simulate_groups",
+    "slot_offsets",
     "start_positions",
+    "target_stream",
 ]
 
 #: Largest number of runs simulated per chunk.
@@ -260,10 +263,24 @@ def _keep_rows(k_steps: int, stride: int) -> np.ndarray:
     return keep
 
 
-def _kernel_arguments(sc: Scenario, stride: int = 1
-                      ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
-    """The compiled mission's shared arrays, obstacle grid, gains, eta rule and constants for
-    ``sc``, with the trajectories kept every ``stride`` steps (0: not kept)."""
+def kernel_arguments(sc: Scenario, stride: int = 1
+                     ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
+    """The compiled mission's shared arguments for a scenario.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    stride : int, default 1
+        The trajectories are kept every ``stride`` steps and at the last (0: not kept).
+
+    Returns
+    -------
+    tuple
+        ``(scene, index, gains, eta_rule, constants)``: the shared arrays
+        (:class:`crlbswarm.mission_kernel.SceneArrays`), the obstacle grid, the gains' and
+        the eta rule's kernel tuples, the :class:`crlbswarm.mission_kernel.MissionConstants`.
+    """
     motion, est, safety = sc.target_motion, sc.estimation, sc.safety
     f_mat, q_mat, n = motion_matrices(
         motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
@@ -375,6 +392,22 @@ def run_keys(seed: int) -> np.ndarray:
     return np.array(stream_key(seed, DISTURBANCE) + stream_key(seed, RANGE_NOISE), np.int64)
 
 
+def target_stream(seed: int) -> np.random.Generator:
+    """The NumPy stream of the target's acceleration noise of the run with ``seed``.
+
+    Parameters
+    ----------
+    seed : int
+        The run's seed.
+
+    Returns
+    -------
+    numpy.random.Generator
+        The stream (a child of ``SeedSequence(seed)``, the same as :func:`simulate`'s).
+    """
+    return _streams(seed, _TARGET_STREAM)[0]
+
+
 def _draw_run(sc: Scenario, seed: int, keys: np.ndarray) -> tuple[np.ndarray, np.random.Generator]:
     """One run's random inputs: the start (returned), the keys of the kernel's draws (into
     ``keys``), and the stream of the target's motion (returned)."""
@@ -383,10 +416,26 @@ def _draw_run(sc: Scenario, seed: int, keys: np.ndarray) -> tuple[np.ndarray, np
     return _start(sc, start_rng), motion_rng
 
 
-def _slot_offsets(sc: Scenario, start: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Each UAV's slot offset from the formation's centre, after the slot assignment from
-    ``start`` (unequal UAVs: a slot is made for its UAV's radar, so only a UAV of the same
-    kind takes it)."""
+def slot_offsets(sc: Scenario, start: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Each UAV's slot offset from the formation's centre, after the slot assignment.
+
+    Unequal UAVs: a slot is made for its UAV's radar, so only a UAV of the same kind takes
+    it.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    start : ndarray, shape (M, 2)
+        The start positions the slots are assigned from, m.
+    centre : ndarray, shape (2,)
+        The formation's centre, m.
+
+    Returns
+    -------
+    ndarray, shape (M, 2)
+        Each UAV's offset, m.
+    """
     offsets = sc.slots - centre
     if sc.formation.assignment != "optimal":
         return offsets
@@ -411,7 +460,7 @@ def _draw_inputs(sc: Scenario, seeds: np.ndarray, buf: _ChunkBuffers) -> Any:
     centre = np.asarray(sc.target) + sc.formation_design.centre_offset
     for i, s in enumerate(seeds):
         buf.start[i], motion_rng = _draw_run(sc, int(s), buf.keys[i])
-        buf.delta[i] = _slot_offsets(sc, buf.start[i], centre)
+        buf.delta[i] = slot_offsets(sc, buf.start[i], centre)
         motion_rngs.append(motion_rng)
     motion = sc.target_motion
     return target_trajectories(
@@ -533,7 +582,7 @@ def simulate(
     seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories, stride)
     n_runs = seed_arr.shape[0]
     kept = kept_rows(k_steps, stride if keep_trajectories else 0)
-    kernel_args = _kernel_arguments(sc, stride if keep_trajectories else 0)
+    kernel_args = kernel_arguments(sc, stride if keep_trajectories else 0)
     scene = kernel_args[0]
     batch = _Batch(sc, n_runs, kept.size)
     # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays, and at least ~20 chunks
@@ -585,7 +634,7 @@ def _group_arguments(
     plan = sc.group_plan
     assert plan is not None  # (called with extra targets only)
     scenarios = plan.scenarios
-    scene, index, _, _, const = _kernel_arguments(scenarios[0])
+    scene, index, _, _, const = kernel_arguments(scenarios[0])
     gains = [g.gains for g in scenarios]
     eps = min(float(g.epsilon) for g in gains)
     gamma = min(float(g.gamma) for g in gains)
@@ -685,7 +734,7 @@ def simulate_groups(
         q[i, 0] = start[order]
         for g, gsc in enumerate(plan.scenarios):
             lo, hi = groups.bounds[g], groups.bounds[g + 1]
-            delta[i, lo:hi] = _slot_offsets(gsc, q[i, 0, lo:hi], groups.goals[g])
+            delta[i, lo:hi] = slot_offsets(gsc, q[i, 0, lo:hi], groups.goals[g])
     outs = GroupOutputs(
         q, v, np.empty((n_runs, k1, n_groups, 2)), np.ones((n_runs, k1, n_groups)),
         np.empty((n_runs, k1, n_groups)), np.empty((n_runs, k1)),

@@ -68,7 +68,6 @@ from .flynet import (
 )
 from .mission_kernel import (
     FILTER_ITERATIONS,
-    REPLAN_PERIOD,
     MissionConstants,
     RunOutputs,
     SceneArrays,
@@ -81,12 +80,17 @@ from .mission_kernel import (
     step_state,
     update_block,
 )
-from .obstacles import obstacle_index
-from .planning import assign_slots
 from .scenario import Scenario
-from .simulation import layer_markers, run_keys, start_positions
+from .simulation import (
+    kernel_arguments,
+    layer_markers,
+    run_keys,
+    slot_offsets,
+    start_positions,
+    target_stream,
+)
 from .spatial import SEPARATION_BRUTE_FORCE_MAX
-from .tracking import filter_work, motion_matrices, predict_into, target_trajectories, update_into
+from .tracking import filter_work, predict_into, target_trajectories, update_into
 
 __all__ = [
     "FlyRun",
@@ -100,10 +104,6 @@ __all__ = [
     "uav_move",
     "wait_for_members",
 ]
-
-#: The child of ``SeedSequence(seed).spawn(4)`` that draws the target's acceleration noise
-#: (as :func:`crlbswarm.simulate` does).
-TARGET_STREAM = 3
 
 _ON = np.empty(0)
 
@@ -223,52 +223,6 @@ class FlyRun:
         return sorted({*self.neighbours(m), self.leader} - {m})
 
 
-# TODO(lead): the same as simulation._kernel_arguments (stride 0); expose that function
-# (e.g. simulation.kernel_arguments) and call it here instead of this copy.
-def _kernel_arguments(sc: Scenario) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:
-    """The compiled mission's shared arrays, obstacle grid, gains, eta rule and constants
-    for ``sc`` (no trajectory rows kept)."""
-    motion, est, safety = sc.target_motion, sc.estimation, sc.safety
-    f_mat, q_mat, n = motion_matrices(
-        motion.model, sc.time.step, motion.turn_rate, motion.acceleration_noise
-    )
-    p0 = np.diag([est.prior_std**2] * 2 + [est.velocity_prior_std**2] * 2)
-    roadmap = sc.roadmap
-    if roadmap is not None:
-        nodes, node_dist, next_node = roadmap.nodes, roadmap.dist_to_goal, roadmap.next_node
-    else:
-        nodes, node_dist, next_node = np.empty((0, 2)), np.empty(0), np.empty(0, np.int64)
-    scene = SceneArrays(
-        indptr=sc.adjacency.indptr, indices=sc.adjacency.indices,
-        rects=sc.obstacle_set.rectangles, circles=sc.obstacle_set.circles,
-        f_mat=np.ascontiguousarray(f_mat[:n, :n]), q_mat=np.ascontiguousarray(q_mat[:n, :n]),
-        p0=np.ascontiguousarray(p0[:n, :n]), nodes=nodes, node_dist=node_dist,
-        next_node=next_node, keep=np.full(sc.time.steps + 1, -1, dtype=np.int64),
-        snr=np.ascontiguousarray(
-            np.broadcast_to(np.asarray(sc.radar_model.snr_constant, dtype=float), (sc.uavs.count,))
-        ),
-    )  # fmt: skip
-    pair_margin, obstacle_margin = sc.safety_margins
-    const = MissionConstants(
-        dt=sc.time.step, leader=sc.uavs.leader, radius=sc.formation_radius,
-        altitude=sc.altitude, snr_constant=float(np.mean(sc.radar_model.snr_constant)),
-        measure_every=est.measure_every, min_separation=safety.min_separation,
-        sensing_radius=safety.radius_for(sc.time.step, sc.safety_margins[0]),
-        decay=safety.decay, pair_margin=pair_margin, obstacle_margin=obstacle_margin,
-        vmax_step=safety.max_speed * sc.time.step, inflation=sc.route_inflation,
-        route_x=float(sc.route_goal[0]), route_y=float(sc.route_goal[1]),
-        carrot=sc.route_carrot, replan_every=max(1, round(REPLAN_PERIOD / sc.time.step)),
-        steer_radius=sc.steering_radius,
-        centre_x=float(sc.formation_design.centre_offset[0]),
-        centre_y=float(sc.formation_design.centre_offset[1]),
-        sigma=float(sc.disturbance.sigma),
-    )  # fmt: skip
-    index = obstacle_index(
-        sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
-    )
-    return scene, index, sc.gains.kernel_tuple(), sc.eta_rule.kernel_tuple(sc.gains), const
-
-
 def fly_run(scenario: Scenario, seed: int) -> FlyRun:
     """The compiled mission's arguments and the inputs of the run with ``seed``, as
     :func:`crlbswarm.simulate` makes them: every process of a flight computes them itself.
@@ -300,15 +254,12 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
             "scenario", "has extra_targets (several targets): fly flies one formation"
         )
     sc, seed = scenario, _v.seed(seed, "seed")
-    scene, index, ctl, rule, const = _kernel_arguments(sc)
+    scene, index, ctl, rule, const = kernel_arguments(sc, 0)
     start = start_positions(sc, seed)
     centre = np.asarray(sc.target, dtype=float) + sc.formation_design.centre_offset
-    delta = sc.slots - centre
-    if sc.formation.assignment == "optimal":  # (as simulate assigns them)
-        kinds = sc.radar_model.snr_constant if sc.radar_model.per_uav else None
-        delta = delta[assign_slots(start, sc.slots, sc.uavs.leader, kinds)]
+    delta = slot_offsets(sc, start, centre)
     motion = sc.target_motion
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[TARGET_STREAM])
+    rng = target_stream(seed)
     truth = target_trajectories(
         np.asarray(sc.target, dtype=float), np.asarray(motion.velocity, dtype=float),
         motion.model, sc.time.step, sc.time.steps, [rng], motion.turn_rate,
