@@ -11,8 +11,10 @@ the start positions (child 0) and the target's acceleration noise (child 3); the
 disturbance and the range noise are drawn inside the kernel, each number from the
 counter-based generator of :mod:`crlbswarm.counter_rng` keyed by (seed, stream) and
 counted by (step, UAV), so no array of them is ever held and the memory of a run does not
-grow with its length. Run :math:`b` of a batch is therefore bit-identical to the single
-run with the same seed, whatever the batch, the chunk or the thread.
+grow with its length; so are the messages' losses and delays of a scenario with links
+(stream LINKS, :mod:`crlbswarm.links`). Run :math:`b` of a batch is therefore
+bit-identical to the single run with the same seed, whatever the batch, the chunk or the
+thread.
 """
 
 from __future__ import annotations
