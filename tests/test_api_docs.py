@@ -34,6 +34,7 @@ MODULES = [
     "crlbswarm.obstacles",
     "crlbswarm.spatial",
     "crlbswarm.counter_rng",
+    "crlbswarm.links",
     "crlbswarm.safety",
     "crlbswarm.planning",
     "crlbswarm.control",

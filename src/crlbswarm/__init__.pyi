@@ -96,6 +96,10 @@ from .graphs import (
     consensus_step_limit as consensus_step_limit,
     formation_step_limit as formation_step_limit,
 )
+from .links import (
+    LinksConfig as LinksConfig,
+    message_fates as message_fates,
+)
 from .montecarlo import (
     EstimatorSweep as EstimatorSweep,
     MonteCarloResult as MonteCarloResult,

@@ -47,7 +47,8 @@ from collections import namedtuple
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 from numpy.typing import ArrayLike
 from pydantic import Field, PlainValidator, ValidationError
 
@@ -85,6 +86,7 @@ __all__ = [
     "route_clear",
     "route_eta_goal",
     "route_point",
+    "row_scale",
     "smoothstep",
     "travel_weight",
 ]
@@ -305,14 +307,22 @@ ARRIVAL_OUTER = 0.5
 @njit(cache=True)
 def consensus_update(v, v_ref, leader, indptr, indices, gamma, out):
     """Corrected eq. (14) on one formation: followers step toward their neighbours; the
-    leader holds ``v_ref``. Writes ``out`` (M, 2). Compiled kernel, no checks."""
-    consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, 0, v.shape[0])
+    leader holds ``v_ref``. Writes ``out`` (M, 2). The leader's row of ``v`` is what its
+    neighbours read as its velocity: the caller puts :math:`\\mathbf v^*_k` there (as the
+    mission kernel does, and :func:`consensus_step` on its copy). Compiled kernel, no
+    checks."""
+    consensus_rows(v, v_ref, leader, v, indices, indptr, gamma, out, 0, v.shape[0])
 
 
 @leaf
-def consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, lo, hi):
+def consensus_rows(v, v_ref, leader, tab, lookup, indptr, gamma, out, lo, hi):
     """:func:`consensus_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
-    swarm; the law's one writing)."""
+    swarm; the law's one writing). UAV m's neighbours are the entries ``j`` of
+    ``indptr[m] .. indptr[m+1] - 1``; neighbour j's velocity is ``tab[lookup[j]]``: with
+    perfect links ``tab`` is ``v`` itself and ``lookup`` the CSR neighbour indices (the
+    leader's row holding :math:`\\mathbf v^*_k`); with the links of :mod:`crlbswarm.links`
+    it is the copy each UAV last received from that neighbour (the leader's reference
+    travels in the leader's messages) and ``lookup`` the link's number."""
     for m in range(lo, hi):
         if m == leader:
             out[m, 0] = v_ref[0]
@@ -321,35 +331,72 @@ def consensus_rows(v, v_ref, leader, indptr, indices, gamma, out, lo, hi):
         sx = 0.0
         sy = 0.0
         for j in range(indptr[m], indptr[m + 1]):
-            p = indices[j]
-            if p == leader:
-                px, py = v_ref[0], v_ref[1]
-            else:
-                px, py = v[p, 0], v[p, 1]
-            sx += v[m, 0] - px
-            sy += v[m, 1] - py
+            n = lookup[j]
+            sx += v[m, 0] - tab[n, 0]
+            sy += v[m, 1] - tab[n, 1]
         out[m, 0] = v[m, 0] - gamma * sx
         out[m, 1] = v[m, 1] - gamma * sy
+
+
+def row_scale(eta: Any, m: int) -> float:
+    r"""The scaling factor of UAV ``m``: ``eta`` itself (one for the whole formation, the
+    paper's :math:`\eta_k`) or ``eta[m]`` (one per UAV: the :math:`\eta` each UAV knows,
+    with the links of :mod:`crlbswarm.links`). Compiled kernels get the one of the type
+    they are compiled for (a Numba ``overload``, inlined: nothing is looked up at run
+    time).
+
+    Parameters
+    ----------
+    eta : float or ndarray, shape (M,)
+        One scaling factor, or one per UAV.
+    m : int
+        The UAV.
+
+    Returns
+    -------
+    float
+        Its scaling factor.
+
+    Examples
+    --------
+    >>> row_scale(0.5, 3), row_scale(np.array([1.0, 0.7]), 1)
+    (0.5, 0.7)
+    """
+    return float(eta) if np.ndim(eta) == 0 else float(eta[m])
+
+
+@overload(row_scale, inline="always")
+def _row_scale_kernel(eta, m):
+    if isinstance(eta, types.Array):
+        return lambda eta, m: eta[m]
+    return lambda eta, m: eta
 
 
 @njit(cache=True)
 def formation_update(q, delta, eta, eps, indptr, indices, out):
     """Eq. (19) without repulsion on one formation:
     ``-eps sum_p a_mp (q_m - q_p - eta (delta_m - delta_p))``. Writes ``out`` (M, 2)."""
-    formation_rows(q, delta, eta, eps, indptr, indices, out, 0, q.shape[0])
+    formation_rows(q, delta, eta, eps, q, indices, indptr, indices, out, 0, q.shape[0])
 
 
 @leaf
-def formation_rows(q, delta, eta, eps, indptr, indices, out, lo, hi):
+def formation_rows(q, delta, eta, eps, tab, lookup, indptr, indices, out, lo, hi):
     """:func:`formation_update` for the UAVs ``lo .. hi - 1`` only (a block of a large
-    swarm; the law's one writing)."""
+    swarm; the law's one writing). UAV m's neighbours are the entries ``j`` of
+    ``indptr[m] .. indptr[m+1] - 1``: neighbour ``indices[j]`` (its slot offset) at
+    position ``tab[lookup[j]]``. With perfect links ``tab`` is ``q`` itself, ``lookup`` is
+    ``indices`` and ``eta`` one number; with the links of :mod:`crlbswarm.links` ``tab``
+    holds the position each UAV last received from that neighbour, ``lookup`` the link's
+    number, and ``eta`` the scaling factor each UAV knows (:func:`row_scale`)."""
     for m in range(lo, hi):
+        e = row_scale(eta, m)
         sx = 0.0
         sy = 0.0
         for j in range(indptr[m], indptr[m + 1]):
             p = indices[j]
-            sx += q[m, 0] - q[p, 0] - eta * (delta[m, 0] - delta[p, 0])
-            sy += q[m, 1] - q[p, 1] - eta * (delta[m, 1] - delta[p, 1])
+            n = lookup[j]
+            sx += q[m, 0] - tab[n, 0] - e * (delta[m, 0] - delta[p, 0])
+            sy += q[m, 1] - tab[n, 1] - e * (delta[m, 1] - delta[p, 1])
         out[m, 0] = -eps * sx
         out[m, 1] = -eps * sy
 
@@ -739,8 +786,9 @@ def consensus_step(
     gamma = float(_check_gains(gains).resolve(adjacency, lead).gamma)
     shape = _v.broadcast("v_ref", v.shape[:-2], ref.shape[:-1])
     _check_size(shape, v.shape[-2], "velocities")
-    vb = _flat(v, shape, v.shape[-2:])
+    vb = _flat(v, shape, v.shape[-2:]).copy()
     rb = _flat(ref, shape, (2,))
+    vb[:, lead] = rb  # the leader's velocity as its neighbours read it: v*
     out = np.empty_like(vb)
     _consensus_batch(vb, rb, lead, adjacency.indptr, adjacency.indices, gamma, out)
     _overflow(out, "gamma", ("velocities", v), ("v_ref", ref))

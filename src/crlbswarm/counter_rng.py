@@ -36,6 +36,11 @@ Counter
             a draw needing more takes blocks 1, 2, ...)
     ======  ==========================================================================
 
+    The stream :data:`LINKS` (2) of the communication links (:mod:`crlbswarm.links`)
+    counts the messages between UAVs ``a < b`` by (step, a, ``LINKS``, 4 b + kind): the
+    two directions of a link share a block, each kind of draw (loss, delay, channel) has
+    its own.
+
     The stream enters the key and the counter: two streams of one run never share a
     Philox block, even if their keys collided.
 
@@ -74,6 +79,7 @@ from .errors import FieldError
 __all__ = [
     "DISTURBANCE",
     "KEY_DOMAIN",
+    "LINKS",
     "RANGE_NOISE",
     "normal_pair",
     "philox4x32",
@@ -88,6 +94,11 @@ DISTURBANCE = 0
 
 #: Stream of the range noise (counter word ``c2``): one normal per UAV and step.
 RANGE_NOISE = 1
+
+#: Stream of the communication links (counter word ``c2``; :mod:`crlbswarm.links`): the
+#: loss, delay and channel state of the messages between UAVs a < b, counted by (step, a,
+#: LINKS, 4 b + kind).
+LINKS = 2
 
 #: First word of the spawn key of :func:`stream_key` ("PHLX" in ASCII): far above the
 #: children ``SeedSequence(seed).spawn(n)`` gives, so the keys share no entropy with them.

@@ -25,6 +25,12 @@ the formation centroid that the leader uses to steer the formation off obstacles
    free-width rule at a limited rate;
 3. the filter predicts the target state with its motion model.
 
+With communication links (the scenario's ``[links]`` table, :mod:`crlbswarm.links`), step
+1 is followed by the messages of the step (:func:`crlbswarm.links.exchange`), and the
+formation input and the consensus of step 2 read each UAV's neighbours from what it has
+received (the laws' tables, :func:`crlbswarm.control.formation_rows`), each UAV at the
+:math:`\eta` it knows; without the table the link layer is not compiled.
+
 The per-UAV work is done in blocks of :data:`UAV_BLOCK` UAVs (:func:`state_block`,
 :func:`input_block`, :func:`motion_block`, :func:`update_block`), on all threads for one
 large swarm. The driver, :func:`crlbswarm.simulate`, prepares the inputs and calls
@@ -67,6 +73,7 @@ from .control import (
 from .counter_rng import DISTURBANCE, RANGE_NOISE, normal_pair
 from .estimation import noisy_range
 from .fisher import fim_entries_at, inverse_figures_at
+from .links import exchange, neighbour_tables
 from .obstacles import field_of
 from .planning import best_waypoint, segment_clear
 from .safety import UNBLOCK_TURN, safety_step
@@ -104,6 +111,7 @@ __all__ = [
     "separation_of",
     "state_block",
     "steering_footprint",
+    "step_inputs",
     "step_motion",
     "step_state",
     "update_block",
@@ -501,13 +509,19 @@ def state_block(b, lo, hi, shift, q, q_next, v, v_next, tx, ty, altitude, snr, p
 
 
 @leaf
-def input_block(b, lo, hi, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
-                indices, ctl, part):  # fmt: skip
+def input_block(b, lo, hi, q, delta, eta, etas, u, rep, clear, rects, circles, index, indptr,
+                indices, lookup, tab, ctl, part):  # fmt: skip
     """The inputs of the UAVs ``lo .. hi - 1`` (block ``b``): one pass over the obstacles
     for each (its repulsion of eq. (18) into ``rep``, its clearance into ``clear``, the
-    block's smallest into ``part[b, 5]``) and the formation input of eq. (19) into ``u``."""
+    block's smallest into ``part[b, 5]``) and the formation input of eq. (19) into ``u``,
+    each UAV's neighbours (CSR ``indptr``, ``indices``) at the positions ``tab[lookup[j]]``
+    (:func:`crlbswarm.control.formation_rows`), all at the scale ``eta``, or, with links
+    (``etas`` not None), each UAV at the scale it knows, ``etas[m]``."""
     part[b, 5] = obstacle_pass(q, rep, clear, rects, circles, index, ctl, lo, hi)
-    formation_rows(q, delta, eta, ctl.epsilon, indptr, indices, u, lo, hi)
+    if etas is None:
+        formation_rows(q, delta, eta, ctl.epsilon, tab, lookup, indptr, indices, u, lo, hi)
+    else:
+        formation_rows(q, delta, etas, ctl.epsilon, tab, lookup, indptr, indices, u, lo, hi)
 
 
 @leaf
@@ -535,12 +549,15 @@ def motion_block(b, lo, hi, k, q, q_next, v, u, rep, keys, ids, const, filtered,
 
 
 @leaf
-def update_block(b, lo, hi, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl,
-                 dt, part):  # fmt: skip
+def update_block(b, lo, hi, q, q_next, v, v_next, delta, vref, leader, indptr, indices, n_ptr,
+                 lookup, tab, ctl, dt, part):  # fmt: skip
     """After the motion, for the UAVs ``lo .. hi - 1`` (block ``b``): their terms of the
-    cost of eq. (15) into ``part[b, 7]`` and the consensus of eq. (14) into ``v_next``."""
+    cost of eq. (15) into ``part[b, 7]`` (the true positions, the graph ``indptr``,
+    ``indices``) and the consensus of eq. (14) into ``v_next``, each UAV's neighbours (row
+    pointers ``n_ptr``) at the velocities ``tab[lookup[j]]``
+    (:func:`crlbswarm.control.consensus_rows`)."""
     part[b, 7] = cost_rows(q, q_next, delta, vref, dt, indptr, indices, lo, hi)
-    consensus_rows(v, vref, leader, indptr, indices, ctl.gamma, v_next, lo, hi)
+    consensus_rows(v, vref, leader, tab, lookup, n_ptr, ctl.gamma, v_next, lo, hi)
 
 
 @njit(cache=True, parallel=True)
@@ -552,12 +569,12 @@ def _state_blocks(n_uavs, shift, q, q_next, v, v_next, tx, ty, altitude, snr, pa
 
 
 @njit(cache=True, parallel=True)
-def _input_blocks(n_uavs, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
-                  indices, ctl, part):  # fmt: skip
+def _input_blocks(n_uavs, q, delta, eta, etas, u, rep, clear, rects, circles, index, indptr,
+                  indices, lookup, tab, ctl, part):  # fmt: skip
     for b in prange(part.shape[0]):
         lo = b * UAV_BLOCK
-        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, u, rep, clear, rects,
-                    circles, index, indptr, indices, ctl, part)  # fmt: skip
+        input_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, delta, eta, etas, u, rep, clear,
+                    rects, circles, index, indptr, indices, lookup, tab, ctl, part)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)
@@ -569,12 +586,12 @@ def _motion_blocks(n_uavs, k, q, q_next, v, u, rep, keys, ids, const, filtered, 
 
 
 @njit(cache=True, parallel=True)
-def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl, dt,
-                   part):  # fmt: skip
+def _update_blocks(n_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices, n_ptr,
+                   lookup, tab, ctl, dt, part):  # fmt: skip
     for b in prange(part.shape[0]):
         lo = b * UAV_BLOCK
         update_block(b, lo, min(lo + UAV_BLOCK, n_uavs), q, q_next, v, v_next, delta, vref,
-                     leader, indptr, indices, ctl, dt, part)  # fmt: skip
+                     leader, indptr, indices, n_ptr, lookup, tab, ctl, dt, part)  # fmt: skip
 
 
 @leaf
@@ -691,9 +708,28 @@ def step_state(k, q, q_next, v, v_next, tx, ty, snr, part, const, out_centroid, 
 
 
 @njit(cache=True, inline="always")
-def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr, indices, ctl,
-                const, filtered, part, out_cost, wide):  # fmt: skip
-    """:func:`motion_block` then :func:`update_block` on every block (on all threads with
+def step_inputs(q, delta, eta, etas, u, rep, clear, rects, circles, index, indptr, indices,
+                lookup, tab, ctl, part, wide):  # fmt: skip
+    """:func:`input_block` on every block (on all threads with ``wide``); returns the
+    smallest clearance of the step."""
+    m_uavs = q.shape[0]
+    if wide is not None:
+        _input_blocks(m_uavs, q, delta, eta, etas, u, rep, clear, rects, circles, index, indptr,
+                      indices, lookup, tab, ctl, part)  # fmt: skip
+    else:
+        for b in range(part.shape[0]):
+            lo = b * UAV_BLOCK
+            input_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, delta, eta, etas, u, rep, clear,
+                        rects, circles, index, indptr, indices, lookup, tab, ctl,
+                        part)  # fmt: skip
+    return block_minimum(part, 5)
+
+
+@njit(cache=True, inline="always")
+def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr, indices, n_ptr,
+                lookup, v_tab, ctl, const, filtered, part, out_cost, wide):  # fmt: skip
+    """:func:`motion_block` then :func:`update_block` (the consensus on the neighbours'
+    velocities ``v_tab[lookup[j]]``, rows ``n_ptr``) on every block (on all threads with
     ``wide``), then the cost of eq. (15) (the blocks' sums in block order) into
     ``out_cost[k]``. Returns False if a position ran away."""
     m_uavs = q.shape[0]
@@ -702,8 +738,8 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
     leader = const.leader
     if wide is not None:
         _motion_blocks(m_uavs, k, q, q_next, v, u, rep, keys, ids, const, filtered, part)
-        _update_blocks(m_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices, ctl,
-                       dt, part)  # fmt: skip
+        _update_blocks(m_uavs, q, q_next, v, v_next, delta, vref, leader, indptr, indices,
+                       n_ptr, lookup, v_tab, ctl, dt, part)  # fmt: skip
     else:
         for b in range(n_blocks):
             lo = b * UAV_BLOCK
@@ -712,7 +748,8 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
         for b in range(n_blocks):
             lo = b * UAV_BLOCK
             update_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, q_next, v, v_next, delta, vref,
-                         leader, indptr, indices, ctl, dt, part)  # fmt: skip
+                         leader, indptr, indices, n_ptr, lookup, v_tab, ctl, dt,
+                         part)  # fmt: skip
     cost = 0.0
     for b in range(n_blocks):
         if part[b, 6] != 0.0:
@@ -723,7 +760,8 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
 
 
 @njit(cache=True)
-def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wide, crowd):
+def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wide, crowd, links,
+                lio):  # fmt: skip
     """One run from ``inp.start`` for ``inp.target.shape[0] - 1`` steps; returns -1, or the
     step at which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
 
@@ -742,6 +780,14 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     swarm). The per-UAV work is done block by block either way and the blocks' partial
     sums are added in block order, so the results do not depend on ``wide`` or the
     threads, bit for bit.
+
+    ``links`` is the link model (:class:`crlbswarm.links.LinkModel`) and ``lio`` the run's
+    link inputs and outputs (its Philox key of the stream LINKS, shape (2,), and its
+    :data:`crlbswarm.links.LINK_SERIES`, shape (K+1, 5)), or both None for perfect links:
+    the laws then read the neighbours' states of the step itself, and the link layer is
+    not compiled. With links, every step exchanges the messages
+    (:func:`crlbswarm.links.exchange`) after the leader's step, and the laws read what
+    each UAV received (:class:`crlbswarm.links.LinkState`), each UAV at its own eta.
 
     The state of the step lives in work arrays of shape (M, 2); the trajectories are
     copied out at the kept steps only, so the memory does not grow with the mission's
@@ -771,6 +817,11 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     p_cov = scene.p0.copy()
     f_work = filter_work()
     moving = x.shape[0] == 4
+    # The neighbours the laws read (CSR rows, senders, rows of the tables) and the tables:
+    # the state of the step itself (perfect links), or what each UAV received.
+    st, n_ptr, n_idx, n_look, q_tab, v_tab, etas, l_key0, l_key1, l_series = neighbour_tables(
+        links, lio, m_uavs, indptr, indices, q, v
+    )
     for k in range(k_steps + 1):
         eta = out_eta[k]
         # The state of step k, the centroid, the FIM at the true target (eq. (9)), the CRLB.
@@ -797,18 +848,13 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
         eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
                                 circles, delta, scene, index, ctl, rule, const, out,
                                 route)  # fmt: skip
+        if links is not None:  # the messages of the step
+            exchange(k, q, v, eta, const.leader, l_key0, l_key1, links, st, l_series)
         keep_state(keep[k], q, v, out_q, out_v)
         # One pass over the obstacles per UAV (its clearance and the repulsion of eq. (18))
         # and the formation input of eq. (19).
-        if wide is not None:
-            _input_blocks(m_uavs, q, delta, eta, u, rep, clear, rects, circles, index, indptr,
-                          indices, ctl, part)  # fmt: skip
-        else:
-            for b in range(n_blocks):
-                lo = b * UAV_BLOCK
-                input_block(b, lo, min(lo + UAV_BLOCK, m_uavs), q, delta, eta, u, rep, clear,
-                            rects, circles, index, indptr, indices, ctl, part)  # fmt: skip
-        out_clear[k] = block_minimum(part, 5)
+        out_clear[k] = step_inputs(q, delta, eta, etas, u, rep, clear, rects, circles, index,
+                                   n_ptr, n_idx, n_look, q_tab, ctl, part, wide)  # fmt: skip
         out_sep[k] = separation_of(q, wide, crowd)
         if k == k_steps:
             break
@@ -818,7 +864,8 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
             safe_displacement(q, v, u, rep, d_work, rects, circles, const, a_work, b_work)
         filtered = safe is not None
         if not step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
-                           indices, ctl, const, filtered, part, out_cost, wide):  # fmt: skip
+                           indices, n_ptr, n_look, v_tab, ctl, const, filtered, part, out_cost,
+                           wide):  # fmt: skip
             return k + 1
         out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule,
                                   const, route)  # fmt: skip
@@ -828,11 +875,13 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
 
 
 @njit(cache=True, parallel=True)
-def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, track, crowd):
+def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, track, crowd,
+              links, link_io):  # fmt: skip
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
     with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
-    ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`);
-    ``status[b]`` receives :func:`run_mission`'s result."""
+    ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`; ``links``
+    its link model and ``link_io`` the runs' link keys (B, 2) and series (B, K+1, 5), or
+    both None); ``status[b]`` receives :func:`run_mission`'s result."""
     for b in prange(status.shape[0]):
         out = RunOutputs(
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
@@ -841,8 +890,13 @@ def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, t
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
                         inps[6][b])  # fmt: skip
-        status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track,
-                                None, crowd)  # fmt: skip
+        if links is None:
+            status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route,
+                                    track, None, crowd, None, None)  # fmt: skip
+        else:
+            status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route,
+                                    track, None, crowd, links,
+                                    (link_io[0][b], link_io[1][b]))  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FieldError
+from .links import LINK_SERIES
 from .output import atomic_path, staged_folder, write_csv, write_json, write_text
 from .scenario import GroupPlan, Scenario, load_scenario
 
@@ -118,6 +119,20 @@ class MissionResult:
         simulator's kernel computes it at every step; when it is not given (``None``, e.g.
         a result saved by an older build) it is computed from ``centroid`` and ``target``,
         with the same bits.
+    link_sent : ndarray, shape (B, K+1), or None
+        With links (the scenario's ``[links]`` table, :mod:`crlbswarm.links`): the
+        messages sent at each step (one per link in range, at the sending steps); ``None``
+        without links (perfect links: every state of the step, instantly).
+    link_delivered : ndarray, shape (B, K+1), or None
+        Of those, the messages not lost (received then or later).
+    link_age : ndarray, shape (B, K+1), or None
+        Mean age of the neighbours' states the laws use at the step, s (NaN when a UAV
+        uses none).
+    link_age_max : ndarray, shape (B, K+1), or None
+        Largest such age, s.
+    link_connected : ndarray, shape (B, K+1), or None
+        1 where the communication graph is connected (the links in use whose last message
+        is at most ``links.timeout`` old), else 0.
     metrics : dict of str to ndarray, shape (B,)
         Per-run metrics, computed once (the columns of ``metrics.csv``): ``seed``,
         ``outcome`` (:data:`OUTCOMES`), ... ``convergence_time_s`` is the first time from
@@ -147,6 +162,11 @@ class MissionResult:
     bound: float
     trajectory_stride: int = 1
     centroid_error: np.ndarray = None  # type: ignore[assignment]  # None: computed
+    link_sent: np.ndarray | None = None
+    link_delivered: np.ndarray | None = None
+    link_age: np.ndarray | None = None
+    link_age_max: np.ndarray | None = None
+    link_connected: np.ndarray | None = None
     metrics: dict[str, np.ndarray] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -206,6 +226,7 @@ class MissionResult:
             "max_cost": self.cost.max(axis=1),
             "final_cost": self.cost[:, -1],
             **self._estimation_metrics(),
+            **self._link_metrics(),
         }
 
     def _outcomes(self, converged: np.ndarray) -> np.ndarray:
@@ -246,6 +267,30 @@ class MissionResult:
                 tail_error / np.sqrt(self.crlb[:, k0:]), axis=1
             ),
             "steady_max_error_over_filter_std": np.max(tail_error / tail_std, axis=1),
+        }
+
+    def _link_metrics(self) -> dict[str, np.ndarray]:
+        """With links: the delivered fraction of the messages, the mean (over the steps
+        with links in use) and largest age of information, and the time the communication
+        graph was disconnected. Without links none (their perfect values would be 1, 0, 0
+        and 0)."""
+        sent, delivered = self.link_sent, self.link_delivered
+        age, oldest, connected = self.link_age, self.link_age_max, self.link_connected
+        if sent is None or delivered is None or age is None or oldest is None:
+            return {}
+        assert connected is not None
+        total = sent.sum(axis=1)
+        used = np.isfinite(age)
+        steps = used.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fraction = np.where(total > 0, delivered.sum(axis=1) / total, np.nan)
+            mean_age = np.where(steps > 0, np.where(used, age, 0.0).sum(axis=1) / steps, np.nan)
+        largest = np.where(used, oldest, -np.inf).max(axis=1)
+        return {
+            "delivered_fraction": fraction,
+            "mean_age_s": mean_age,
+            "max_age_s": np.where(steps > 0, largest, np.nan),
+            "disconnected_s": np.sum(connected == 0.0, axis=1) * self.scenario.time.step,
         }
 
     @property
@@ -531,6 +576,12 @@ def outcome_report(result: MissionResult) -> list[str]:
         f"min separation      {np.min(m['min_separation_m']):.4g} m "
         f"(safety.min_separation {result.scenario.safety.min_separation:g} m)",
     ]
+    if "delivered_fraction" in m:
+        lines.append(
+            f"links               delivered {np.nanmean(m['delivered_fraction']):.3g} (mean), "
+            f"age {np.nanmean(m['mean_age_s']):.3g} s (mean) {np.max(m['max_age_s']):.3g} s "
+            f"(max), disconnected {np.max(m['disconnected_s']):.3g} s (worst)"
+        )
     failed = n - counts.get("converged", 0)
     if failed:
         why = ", ".join(f"{k} {counts[k]}" for k in OUTCOMES if k != "converged" and k in counts)
@@ -798,6 +849,8 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
         shapes.update(estimate=(b, k1, 2), estimate_variance=(b, k1), pcrb=(k1,))
     if arrays["centroid_error"] is not None:  # (absent from results of older builds)
         shapes.update(centroid_error=(b, k1))
+    if scenario.links is not None:
+        shapes.update({f"link_{n}": (b, k1) for n in LINK_SERIES})
     for name, shape in shapes.items():
         value = arrays[name]
         if value is None or value.shape != shape:

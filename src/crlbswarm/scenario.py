@@ -44,6 +44,7 @@ from .design import crlb_bound, optimal_formation
 from .errors import FieldError, ScenarioError
 from .fisher import crlb
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph, ring_adjacency
+from .links import MAX_ALL_PAIRS_UAVS, LinksConfig, all_pairs_adjacency, check_links
 from .multitarget import TargetAllocation, allocate_targets
 from .obstacles import Obstacles, obstacle_clearance
 from .planning import (
@@ -71,6 +72,7 @@ __all__ = [
     "GraphConfig",
     "GroupPlan",
     "GuidanceConfig",
+    "LinksConfig",
     "RadarConfig",
     "RectangleObstacle",
     "SafetyConfig",
@@ -471,10 +473,17 @@ class Scenario(ConfigModel):
     safety: SafetyConfig = Field(SafetyConfig(), description="inter-UAV safety filter")
     guidance: GuidanceConfig = Field(GuidanceConfig(), description="route planner")
     formation: FormationConfig = Field(FormationConfig(), description="slot assignment")
+    links: LinksConfig | None = Field(
+        None, description="communication links: range, loss, delay, rate (none: perfect links)"
+    )
 
     @model_validator(mode="after")
     def _check_whole(self) -> Scenario:
+        if self.links is not None and self.extra_targets:
+            raise FieldError("links", "is not supported with extra_targets (several targets)")
         check_scenario(self)
+        if self.links is not None:
+            check_links(self.links, self.uavs.count, self.time.step, self.gains)
         return self
 
     # -- derived objects -----------------------------------------------------------------
@@ -616,8 +625,12 @@ class Scenario(ConfigModel):
 
     @cached_property
     def gains(self) -> ControlGains:
-        """The control gains with ``"auto"`` resolved on this scenario's graph."""
-        return self.control.resolve(self.adjacency, self.uavs.leader)
+        """The control gains with ``"auto"`` resolved on this scenario's graph (on every pair
+        of UAVs when ``links.use_graph`` is false: the laws may then link any two)."""
+        links, count = self.links, self.uavs.count
+        if links is None or links.use_graph or count > MAX_ALL_PAIRS_UAVS:
+            return self.control.resolve(self.adjacency, self.uavs.leader)
+        return self.control.resolve(all_pairs_adjacency(count), self.uavs.leader)
 
     @cached_property
     def formation_design(self) -> FormationDesign:

@@ -11,8 +11,10 @@ the start positions (child 0) and the target's acceleration noise (child 3); the
 disturbance and the range noise are drawn inside the kernel, each number from the
 counter-based generator of :mod:`crlbswarm.counter_rng` keyed by (seed, stream) and
 counted by (step, UAV), so no array of them is ever held and the memory of a run does not
-grow with its length. Run :math:`b` of a batch is therefore bit-identical to the single
-run with the same seed, whatever the batch, the chunk or the thread.
+grow with its length; so are the messages' losses and delays of a scenario with links
+(stream LINKS, :mod:`crlbswarm.links`). Run :math:`b` of a batch is therefore
+bit-identical to the single run with the same seed, whatever the batch, the chunk or the
+thread.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ import numba
 import numpy as np
 
 from . import _validation as _v
-from .counter_rng import DISTURBANCE, RANGE_NOISE, stream_key
+from .counter_rng import DISTURBANCE, LINKS, RANGE_NOISE, stream_key
 from .errors import FieldError, SimulationDivergedError
 from .fisher import crlb
+from .links import LINK_SERIES, LinkModel, link_model, link_state_bytes
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
     REPLAN_PERIOD,
@@ -55,6 +58,7 @@ __all__ = [
     "check_memory",
     "kernel_arguments",
     "layer_markers",
+    "link_arguments",
     "run_keys",
     "simulate",
     "simulate_groups",
@@ -145,7 +149,7 @@ def start_positions(scenario: Scenario, seed: int) -> np.ndarray:
 
 
 def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_steps: int,
-               keep: bool, stride: int = 1) -> np.ndarray:  # fmt: skip
+               keep: bool, stride: int = 1, link_bytes: int = 0) -> np.ndarray:  # fmt: skip
     """The seeds as an int64 array, checked; a ``range`` is checked (values and the memory
     of its runs) before it is materialised."""
     if seed is not None and seeds is not None:
@@ -156,7 +160,7 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
             raise FieldError("seeds", "need at least one seed")
         _v.seed(seeds[0], name)
         _v.seed(seeds[-1], name)  # a range's values lie between its ends
-        check_memory(len(seeds), k_steps, m_uavs, keep, stride)
+        check_memory(len(seeds), k_steps, m_uavs, keep, stride, link_bytes)
         return np.arange(seeds.start, seeds.stop, seeds.step, dtype=np.int64)
     if seeds is None:
         values = [0 if seed is None else seed]
@@ -174,7 +178,7 @@ def _seed_list(seed: int | None, seeds: Iterable[int] | None, m_uavs: int, k_ste
         raise FieldError("seeds", "need at least one seed")
     for s in values:
         _v.seed(s, name)
-    check_memory(len(values), k_steps, m_uavs, keep, stride)
+    check_memory(len(values), k_steps, m_uavs, keep, stride, link_bytes)
     return np.array(values, dtype=np.int64)
 
 
@@ -184,14 +188,17 @@ CHUNK_VALUES_PER_STEP = 3
 CHUNK_VALUES_PER_UAV = 20
 
 
-def _chunk_runs(n_runs: int, k_steps: int, m_uavs: int) -> int:
-    """Runs per chunk: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays, and at least
-    ~20 chunks for long batches so that progress is reported often."""
-    per_run = 8 * (k_steps * CHUNK_VALUES_PER_STEP + m_uavs * CHUNK_VALUES_PER_UAV)
+def _chunk_runs(n_runs: int, k_steps: int, m_uavs: int, link_bytes: int = 0) -> int:
+    """Runs per chunk: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays (``link_bytes``
+    more per run with links), and at least ~20 chunks for long batches so that progress is
+    reported often."""
+    per_run = 8 * (k_steps * CHUNK_VALUES_PER_STEP + m_uavs * CHUNK_VALUES_PER_UAV) + link_bytes
     return max(1, min(CHUNK_RUNS, CHUNK_BYTES // per_run, -(-n_runs // 20), n_runs))
 
 
-def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool, stride: int = 1) -> None:
+def check_memory(
+    n_runs: int, k_steps: int, m_uavs: int, keep: bool, stride: int = 1, link_bytes: int = 0
+) -> None:
     """Refuse, before allocating, a batch whose arrays could not fit in memory.
 
     Parameters
@@ -206,6 +213,9 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool, stride: int
         Whether the trajectories are kept.
     stride : int, default 1
         They are kept every this many steps (:func:`crlbswarm.results.kept_rows`).
+    link_bytes : int, default 0
+        Bytes of one run's link state (:func:`crlbswarm.links.link_state_bytes`; 0 without
+        links), whose series add 5 values per step and run.
 
     Raises
     ------
@@ -217,10 +227,12 @@ def check_memory(n_runs: int, k_steps: int, m_uavs: int, keep: bool, stride: int
     if keep:
         fixes.append("keep_trajectories=False (--no-trajectories) or a trajectory stride")
     fixes.append("fewer UAVs or steps (uavs.count, time.duration)")
-    chunk = _chunk_runs(n_runs, k_steps, m_uavs)
+    chunk = _chunk_runs(n_runs, k_steps, m_uavs, link_bytes)
     work = chunk * 8 * ((k_steps + 1) * CHUNK_VALUES_PER_STEP + m_uavs * CHUNK_VALUES_PER_UAV)
+    work += chunk * link_bytes
+    series = n_runs * (k_steps + 1) * len(LINK_SERIES) * 8 if link_bytes else 0
     _v.check_memory(
-        result_nbytes(n_runs, k_steps, m_uavs, keep, stride) + work,
+        result_nbytes(n_runs, k_steps, m_uavs, keep, stride) + work + series,
         "seeds" if n_runs > 1 else "scenario",
         f"{n_runs} run{'s' * (n_runs != 1)} of {k_steps} steps with {m_uavs} UAVs",
         "use " + ", or ".join(fixes),
@@ -248,6 +260,26 @@ def layer_markers(sc: Scenario) -> tuple[np.ndarray | None, np.ndarray | None, n
         _ON if sc.planner_on else None,
         _ON if sc.estimation.enabled else None,
     )
+
+
+def link_arguments(sc: Scenario) -> LinkModel | None:
+    """The compiled mission's link model of ``sc`` (:func:`crlbswarm.links.link_model`), or
+    None without a ``[links]`` table: the marker of the link layer, so that a mission with
+    perfect links compiles none of it.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+
+    Returns
+    -------
+    LinkModel or None
+        The model.
+    """
+    if sc.links is None:
+        return None
+    return link_model(sc.links, sc.adjacency, sc.uavs.leader, sc.time.step)
 
 
 def _crowd(sc: Scenario) -> np.ndarray | None:
@@ -356,6 +388,7 @@ class _Batch:
         self.estimate = np.full((n_runs, k1, 2), np.nan) if est else None
         self.estimate_variance = np.full((n_runs, k1), np.nan) if est else None
         self.fim_sum = np.zeros((k1, 2, 2))
+        self.links = None if sc.links is None else np.empty((n_runs, k1, len(LINK_SERIES)))
 
 
 class _ChunkBuffers:
@@ -373,6 +406,7 @@ class _ChunkBuffers:
         self.x0 = np.zeros((chunk_runs, n_state))
         self.delta = np.empty((chunk_runs, m, 2))
         self.status = np.empty(chunk_runs, dtype=np.int64)
+        self.link_keys = np.empty((chunk_runs, 2), dtype=np.int64)
 
 
 def run_keys(seed: int) -> np.ndarray:
@@ -477,11 +511,18 @@ def _run_chunk(
     batch: _Batch,
     buf: _ChunkBuffers,
     kernel_args: tuple[SceneArrays, Any, Any, Any, MissionConstants],
+    links: LinkModel | None,
 ) -> None:
-    """Simulate the runs ``lo .. lo + len(seeds) - 1`` of the batch."""
+    """Simulate the runs ``lo .. lo + len(seeds) - 1`` of the batch (``links``: the link
+    model, or None)."""
     n = len(seeds)
     hi = lo + n
     truth = _draw_inputs(sc, seeds, buf)
+    link_io = None
+    if links is not None and batch.links is not None:
+        for i, s in enumerate(seeds):
+            buf.link_keys[i] = stream_key(int(s), LINKS)
+        link_io = (buf.link_keys[:n], batch.links[lo:hi])
     x0 = buf.x0[:n]
     x0[:, :2] = truth[:, 0, :2] + np.asarray(sc.estimation.prior_offset)
     batch.eta[lo:hi, 0] = 1.0
@@ -501,12 +542,13 @@ def _run_chunk(
     if n == 1:  # one run: the serial kernel (no parallel driver to compile for it), its
         # per-UAV work on all threads for a large swarm
         wide = _ON if sc.uavs.count >= WIDE_UAVS and numba.get_num_threads() > 1 else None
+        lio = None if link_io is None else (link_io[0][0], link_io[1][0])
         status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
                                 RunInputs(*(a[0] for a in inps)), *kernel_args,
-                                *layer_markers(sc), wide, _crowd(sc))  # fmt: skip
+                                *layer_markers(sc), wide, _crowd(sc), links, lio)  # fmt: skip
     else:
         run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc),
-                  _crowd(sc))  # fmt: skip
+                  _crowd(sc), links, link_io)  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
@@ -579,7 +621,9 @@ def simulate(
         raise FieldError("scenario", "has extra_targets (several targets): use simulate_groups")
     k_steps, m_uavs = sc.time.steps, sc.uavs.count
     stride = _v.count(trajectory_stride, "trajectory_stride", 1, max(k_steps, 1))
-    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories, stride)
+    links = link_arguments(sc)
+    link_bytes = 0 if links is None else link_state_bytes(links)
+    seed_arr = _seed_list(seed, seeds, m_uavs, k_steps, keep_trajectories, stride, link_bytes)
     n_runs = seed_arr.shape[0]
     kept = kept_rows(k_steps, stride if keep_trajectories else 0)
     kernel_args = kernel_arguments(sc, stride if keep_trajectories else 0)
@@ -587,10 +631,10 @@ def simulate(
     batch = _Batch(sc, n_runs, kept.size)
     # Chunks: at most CHUNK_RUNS runs or CHUNK_BYTES of work arrays, and at least ~20 chunks
     # for long batches so that progress is reported often.
-    chunk_runs = _chunk_runs(n_runs, k_steps, m_uavs)
+    chunk_runs = _chunk_runs(n_runs, k_steps, m_uavs, link_bytes)
     buf = _ChunkBuffers(sc, chunk_runs, scene.p0.shape[0])
     for lo in range(0, n_runs, chunk_runs):
-        _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args)
+        _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args, links)
         if progress is not None:
             progress(min(lo + chunk_runs, n_runs))
     pcrb = None
@@ -621,7 +665,16 @@ def simulate(
         bound=sc.formation_design.bound,
         trajectory_stride=stride,
         centroid_error=batch.centroid_error,
+        **_link_fields(batch.links),
     )
+
+
+def _link_fields(series: np.ndarray | None) -> dict[str, np.ndarray]:
+    """The link series of a batch as the result's fields ``link_<name>``
+    (:data:`crlbswarm.links.LINK_SERIES`); none without links."""
+    if series is None:
+        return {}
+    return {f"link_{n}": np.ascontiguousarray(series[..., i]) for i, n in enumerate(LINK_SERIES)}
 
 
 def _group_arguments(

@@ -291,14 +291,15 @@ def uav_move(k, m, q, q_next, v, v_next, delta, eta, vref, u, rep, clear, d_work
     own nominal displacement and the positions ``q`` of all), its motion of eq. (3)
     (``motion_block``, its own disturbance) into ``q_next[m]`` and its consensus of eq. (14)
     (``update_block``) into ``v_next[m]``. Returns False if its position ran away."""
-    input_block(0, m, m + 1, q, delta, eta, u, rep, clear, scene.rects, scene.circles, index,
-                scene.indptr, scene.indices, ctl, part)  # fmt: skip
+    input_block(0, m, m + 1, q, delta, eta, None, u, rep, clear, scene.rects, scene.circles,
+                index, scene.indptr, scene.indices, scene.indices, q, ctl, part)  # fmt: skip
     if safe is not None:
         safe_displacement(q, v, u, rep, d_work, scene.rects, scene.circles, const, a_work,
                           b_work)  # fmt: skip
     motion_block(0, m, m + 1, k, q, q_next, v, u, rep, keys, ids, const, safe is not None, part)
     update_block(0, m, m + 1, q, q_next, v, v_next, delta, vref, const.leader, scene.indptr,
-                 scene.indices, ctl, const.dt, part)  # fmt: skip
+                 scene.indices, scene.indptr, scene.indices, v, ctl, const.dt,
+                 part)  # fmt: skip
     return part[0, 6] == 0.0
 
 
