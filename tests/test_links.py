@@ -99,7 +99,7 @@ def test_without_links_the_kernel_holds_no_link_layer():
     result = cs.simulate(sc, seeds=range(2))
     assert all(getattr(result, name) is None for name in LINK_FIELDS)
     assert not set(LINK_METRICS) & set(result.metrics)
-    kinds = {tuple(str(t) for t in sig[-2:]) for sig in mk.run_mission.signatures}
+    kinds = {tuple(str(t) for t in sig[-3:-1]) for sig in mk.run_mission.signatures}
     assert ("none", "none") in kinds  # (batches of up to 20 runs run one by one)
 
 

@@ -80,6 +80,7 @@ __all__ = [
     "DISTURBANCE",
     "KEY_DOMAIN",
     "LINKS",
+    "PHASE_STREAMS",
     "RANGE_NOISE",
     "normal_pair",
     "philox4x32",
@@ -99,6 +100,10 @@ RANGE_NOISE = 1
 #: loss, delay and channel state of the messages between UAVs a < b, counted by (step, a,
 #: LINKS, 4 b + kind).
 LINKS = 2
+
+#: Streams per phase of a mission with faults (:mod:`crlbswarm.faults`): phase ``p`` draws
+#: stream ``s`` from the key of (seed, ``s + p * PHASE_STREAMS``); phase 0 is the mission.
+PHASE_STREAMS = 16
 
 #: First word of the spawn key of :func:`stream_key` ("PHLX" in ASCII): far above the
 #: children ``SeedSequence(seed).spawn(n)`` gives, so the keys share no entropy with them.

@@ -21,6 +21,7 @@ __all__ = [
     "azimuth_angles",
     "clip_norm",
     "elevation_angles",
+    "fitted_turn",
     "outline_order",
     "regular_polygon",
     "slant_ranges",
@@ -227,3 +228,27 @@ def outline_order(points: ArrayLike) -> np.ndarray:
         raise FieldError("points", f"expected shape (M, 2), got {p.shape}")
     d = p - p.mean(axis=0)
     return np.lexsort((np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])))
+
+
+def fitted_turn(offsets: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """The rotation that brings ``offsets`` (M, 2) closest to ``positions`` (M, 2) in least
+    squares (both about the same centre): the 2-D case of the orthogonal Procrustes
+    problem, angle ``atan2(sum(d x p), sum(d . p))``.
+
+    Parameters
+    ----------
+    offsets : ndarray, shape (M, 2)
+        The slots, m.
+    positions : ndarray, shape (M, 2)
+        The UAVs, m.
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        The rotation matrix.
+    """
+    cross = np.sum(offsets[:, 0] * positions[:, 1] - offsets[:, 1] * positions[:, 0])
+    dot = np.sum(offsets * positions)
+    angle = math.atan2(cross, dot)
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])

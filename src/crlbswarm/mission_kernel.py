@@ -95,6 +95,7 @@ __all__ = [
     "block_minimum",
     "block_sum",
     "carrot_point",
+    "hold_frozen",
     "input_block",
     "leader_goal",
     "leader_step",
@@ -102,6 +103,7 @@ __all__ = [
     "next_eta",
     "obstacle_pass",
     "passed_nodes",
+    "reference_step",
     "run_batch",
     "run_group_batch",
     "run_groups",
@@ -279,6 +281,9 @@ class RunInputs(NamedTuple):
         a regular polygon; ``MissionConstants.centre_x``), after the slot assignment, m.
     ids : ndarray of int64, shape (M,)
         Each UAV's index in the swarm (the UAV word of its draws' counters).
+    velocity : ndarray, shape (M, 2)
+        Start consensus velocities, m/s (zeros at a mission's start; the velocities of the
+        step a phase of a mission with faults resumes from, :mod:`crlbswarm.faults`).
     """
 
     start: np.ndarray
@@ -288,6 +293,7 @@ class RunInputs(NamedTuple):
     x0: np.ndarray
     delta: np.ndarray
     ids: np.ndarray
+    velocity: np.ndarray
 
 
 class RunOutputs(NamedTuple):
@@ -632,10 +638,14 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
 
 
 @leaf
-def next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule, const, route):
+def next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule, const, route,
+             frozen):  # fmt: skip
     """The next step's scaling factor: the eta rule's goal along the route (the straight
     line to the goal (sx, sy) without the planner), approached at the rule's rate; 1 with
-    the rule off."""
+    the rule off; ``eta`` itself while the leader, which computes it, is lost (``frozen``,
+    :func:`run_mission`)."""
+    if frozen is not None and frozen[const.leader] != 0:
+        return eta
     if not rule.enabled:
         return 1.0
     if route is not None:
@@ -761,7 +771,7 @@ def step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
 
 @njit(cache=True)
 def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wide, crowd, links,
-                lio):  # fmt: skip
+                lio, frozen):  # fmt: skip
     """One run from ``inp.start`` for ``inp.target.shape[0] - 1`` steps; returns -1, or the
     step at which a position ran away (NaN or beyond :data:`DIVERGENCE_LIMIT`).
 
@@ -789,6 +799,12 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     (:func:`crlbswarm.links.exchange`) after the leader's step, and the laws read what
     each UAV received (:class:`crlbswarm.links.LinkState`), each UAV at its own eta.
 
+    ``frozen`` (an int8 array, shape (M,), or None) marks the UAVs that are lost but not yet
+    declared lost (:mod:`crlbswarm.faults`): a frozen UAV does not move (its position and
+    velocity stay those ``inp`` starts from) and, when it is the leader, computes no
+    reference (``vref`` and eta keep their last values). The driver also takes a frozen
+    UAV out of the graph and of the FIM (``scene``), so its neighbours no longer hear it.
+
     The state of the step lives in work arrays of shape (M, 2); the trajectories are
     copied out at the kept steps only, so the memory does not grow with the mission's
     length. The arrays are taken out of their tuples once, before the loop, and no view is
@@ -802,7 +818,7 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     out_q, out_v, out_eta, out_fim, out_cost = out.q, out.v, out.eta, out.fim, out.cost
     out_centroid, out_clear, out_sep = out.centroid, out.clearance, out.separation
     out_crlb, out_centroid_error = out.crlb, out.centroid_error
-    q, v = inp.start.copy(), np.zeros((m_uavs, 2))
+    q, v = inp.start.copy(), inp.velocity.copy()
     q_next, v_next, u = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty((m_uavs, 2))
     rep, d_work, clear = np.empty((m_uavs, 2)), np.empty((m_uavs, 2)), np.empty(m_uavs)
     n_blocks = (m_uavs + UAV_BLOCK - 1) // UAV_BLOCK
@@ -810,7 +826,7 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     n_rows = m_uavs - 1 + rects.shape[0] + circles.shape[0]
     a_work = np.empty((max(n_rows, 1), 2))  # rows of the safety filter's QP
     b_work = np.empty(max(n_rows, 1))
-    vref = np.empty(2)
+    vref = v[const.leader].copy()  # (a lost leader's last reference: where it resumes)
     ranges = np.empty(m_uavs)
     node = -1  # the route's current node (re-planned every replan_every steps)
     x = inp.x0.copy()
@@ -845,9 +861,9 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
         sx += const.centre_x
         sy += const.centre_y
         # Step 1: the leader's reference velocity toward its slot over the goal.
-        eta, node = leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
-                                circles, delta, scene, index, ctl, rule, const, out,
-                                route)  # fmt: skip
+        eta, node = reference_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects,
+                                   circles, delta, scene, index, ctl, rule, const, out, route,
+                                   frozen)  # fmt: skip
         if links is not None:  # the messages of the step
             exchange(k, q, v, eta, const.leader, l_key0, l_key1, links, st, l_series)
         keep_state(keep[k], q, v, out_q, out_v)
@@ -862,26 +878,55 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
         # of eq. (15), the consensus of eq. (14), the next eta.
         if safe is not None:
             safe_displacement(q, v, u, rep, d_work, rects, circles, const, a_work, b_work)
-        filtered = safe is not None
         if not step_motion(k, q, q_next, v, v_next, u, rep, delta, vref, keys, ids, indptr,
-                           indices, n_ptr, n_look, v_tab, ctl, const, filtered, part, out_cost,
-                           wide):  # fmt: skip
+                           indices, n_ptr, n_look, v_tab, ctl, const, safe is not None, part,
+                           out_cost, wide):  # fmt: skip
             return k + 1
+        hold_frozen(frozen, q, q_next, v, v_next)
         out_eta[k + 1] = next_eta(cx, cy, sx, sy, eta, node, rects, circles, index, scene, rule,
-                                  const, route)  # fmt: skip
+                                  const, route, frozen)  # fmt: skip
         if track is not None:  # Step 3: prediction with the target's motion model.
             predict_into(x, p_cov, scene.f_mat, scene.q_mat, f_work)
     return -1
 
 
+@njit(cache=True, inline="always")
+def reference_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles, delta,
+                   scene, index, ctl, rule, const, out, route, frozen):  # fmt: skip
+    """Step 1: :func:`leader_step`, or, when the leader is lost (``frozen``,
+    :func:`run_mission`), its last reference ``vref`` kept (into ``out.v_ref[k]``; the
+    distance to go the straight line to the goal (sx, sy)). Returns ``(eta, node)``."""
+    if frozen is not None and frozen[const.leader] != 0:
+        out.v_ref[k, 0] = vref[0]
+        out.v_ref[k, 1] = vref[1]
+        out.distance_to_go[k] = math.hypot(cx - sx, cy - sy)
+        return eta, node
+    return leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circles,
+                       delta, scene, index, ctl, rule, const, out, route)  # fmt: skip
+
+
+@leaf
+def hold_frozen(frozen, q, q_next, v, v_next):
+    """A frozen UAV (``frozen[m] != 0``: lost, not yet declared lost) keeps its position
+    and velocity: its rows of ``q_next`` and ``v_next`` are those of ``q`` and ``v``
+    (nothing when ``frozen`` is None)."""
+    if frozen is None:
+        return
+    for m in range(frozen.shape[0]):
+        if frozen[m] != 0:
+            q_next[m, 0], q_next[m, 1] = q[m, 0], q[m, 1]
+            v_next[m, 0], v_next[m, 1] = v[m, 0], v[m, 1]
+
+
 @njit(cache=True, parallel=True)
 def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, track, crowd,
-              links, link_io):  # fmt: skip
+              links, link_io, frozen):  # fmt: skip
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
     with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
     ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`; ``links``
     its link model and ``link_io`` the runs' link keys (B, 2) and series (B, K+1, 5), or
-    both None); ``status[b]`` receives :func:`run_mission`'s result."""
+    both None; ``frozen`` as there, the same for every run); ``status[b]`` receives
+    :func:`run_mission`'s result."""
     for b in prange(status.shape[0]):
         out = RunOutputs(
             outs[0][b], outs[1][b], outs[2][b], outs[3][b], outs[4][b], outs[5][b],
@@ -889,14 +934,14 @@ def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, t
             outs[12][b], outs[13][b],
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
-                        inps[6][b])  # fmt: skip
+                        inps[6][b], inps[7][b])  # fmt: skip
         if links is None:
             status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route,
-                                    track, None, crowd, None, None)  # fmt: skip
+                                    track, None, crowd, None, None, frozen)  # fmt: skip
         else:
             status[b] = run_mission(out, inp, scene, index, ctl, rule, const, safe, route,
                                     track, None, crowd, links,
-                                    (link_io[0][b], link_io[1][b]))  # fmt: skip
+                                    (link_io[0][b], link_io[1][b]), frozen)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------
@@ -1073,5 +1118,5 @@ def run_group_batch(outs, inps, status, scene, index, ctl, rule, const, grp, saf
             outs[6][b], outs[7][b],
         )  # fmt: skip
         inp = RunInputs(inps[0][b], inps[1][b], inps[2][b], inps[3][b], inps[4][b], inps[5][b],
-                        inps[6][b])  # fmt: skip
+                        inps[6][b], inps[7][b])  # fmt: skip
         status[b] = run_groups(out, inp, scene, index, ctl, rule, const, grp, safe)

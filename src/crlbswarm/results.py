@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FieldError
+from .faults import FAULT_OUTCOMES
 from .links import LINK_SERIES
 from .output import atomic_path, staged_folder, write_csv, write_json, write_text
 from .scenario import GroupPlan, Scenario, load_scenario
@@ -50,7 +51,7 @@ CENTROID_TOL = 0.5
 PROGRESS_TOL = CENTROID_TOL
 
 #: The outcomes of a run, in order of precedence.
-OUTCOMES = ("collision", "converged", "timeout", "stuck")
+OUTCOMES = ("collision", "converged", "timeout", "stuck", *FAULT_OUTCOMES)
 
 #: Length of the "steady state" window at the end of a mission (estimation metrics), s.
 STEADY_STATE_S = 30.0
@@ -133,9 +134,14 @@ class MissionResult:
     link_connected : ndarray, shape (B, K+1), or None
         1 where the communication graph is connected (the links in use whose last message
         is at most ``links.timeout`` old), else 0.
+    bound_steps : ndarray, shape (K+1,), or None
+        With faults (the scenario's ``[faults]`` table, :mod:`crlbswarm.faults`): the
+        bound of the formation flown at each step (it changes when the swarm re-plans;
+        ``bound`` is the last); the CRLB is measured against it. ``None`` without faults.
     metrics : dict of str to ndarray, shape (B,)
         Per-run metrics, computed once (the columns of ``metrics.csv``): ``seed``,
-        ``outcome`` (:data:`OUTCOMES`), ... ``convergence_time_s`` is the first time from
+        ``outcome`` (:data:`OUTCOMES`; with faults, ``split`` or ``too_few`` when the
+        swarm fell apart, unless it collided), ... ``convergence_time_s`` is the first time from
         which the CRLB stays within ``1 + CRLB_TOL`` of ``bound`` and the centroid within
         ``CENTROID_TOL`` of its place until the end, for at least ``time.hold`` seconds
         (NaN if never): a run that settled and yet collided has a convergence time too,
@@ -167,6 +173,7 @@ class MissionResult:
     link_age: np.ndarray | None = None
     link_age_max: np.ndarray | None = None
     link_connected: np.ndarray | None = None
+    bound_steps: np.ndarray | None = None
     metrics: dict[str, np.ndarray] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -202,7 +209,7 @@ class MissionResult:
         return self.time >= self.time[-1] - window - 1e-9
 
     def _metrics(self) -> dict[str, np.ndarray]:
-        ratio = self.crlb / self.bound
+        ratio = self.crlb / (self.bound if self.bound_steps is None else self.bound_steps)
         centroid = self.centroid_error
         ok = (ratio <= 1.0 + CRLB_TOL) & (centroid <= CENTROID_TOL)
         # Within tolerance from step k on: every later step is ok (reverse cumulative AND);
@@ -244,6 +251,9 @@ class MissionResult:
         progressing = tail.max(axis=1) - tail[:, -1] > PROGRESS_TOL
         out = np.where(progressing, "timeout", "stuck")
         out = np.where(converged, "converged", out)
+        plan = sc.fault_plan
+        if plan is not None and plan.outcome:
+            out = np.full_like(out, plan.outcome)
         return np.where(collided, "collision", out)
 
     @property
@@ -818,7 +828,7 @@ def _concatenate(parts: list[MissionResult], path: Path) -> MissionResult:
     arrays: dict[str, Any] = {}
     for name in _ARRAY_FIELDS:
         values = [getattr(part, name) for part in parts]
-        if name in ("time", "bound", "trajectory_stride") or values[0] is None:
+        if name in ("time", "bound", "trajectory_stride", "bound_steps") or values[0] is None:
             arrays[name] = values[0]
         elif name == "pcrb":
             runs = np.array([part.n_runs for part in parts], dtype=float)
@@ -851,6 +861,8 @@ def _check_arrays(arrays: dict[str, Any], scenario: Scenario, npz: Path) -> None
         shapes.update(centroid_error=(b, k1))
     if scenario.links is not None:
         shapes.update({f"link_{n}": (b, k1) for n in LINK_SERIES})
+    if scenario.faults is not None:
+        shapes.update(bound_steps=(k1,))
     for name, shape in shapes.items():
         value = arrays[name]
         if value is None or value.shape != shape:

@@ -42,6 +42,7 @@ from .constrained import ConstrainedDesign, constrained_design, default_starts
 from .control import ControlGains, EtaRule
 from .design import crlb_bound, optimal_formation
 from .errors import FieldError, ScenarioError
+from .faults import FaultPlan, FaultsConfig, check_faults, plan_faults
 from .fisher import crlb
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph, ring_adjacency
 from .links import MAX_ALL_PAIRS_UAVS, LinksConfig, all_pairs_adjacency, check_links
@@ -476,6 +477,10 @@ class Scenario(ConfigModel):
     links: LinksConfig | None = Field(
         None, description="communication links: range, loss, delay, rate (none: perfect links)"
     )
+    faults: FaultsConfig | None = Field(
+        None, description="UAVs and links lost during the mission, and the timeout that "
+        "detects them (none: no failures)",
+    )  # fmt: skip
 
     @model_validator(mode="after")
     def _check_whole(self) -> Scenario:
@@ -484,6 +489,8 @@ class Scenario(ConfigModel):
         check_scenario(self)
         if self.links is not None:
             check_links(self.links, self.uavs.count, self.time.step, self.gains)
+        if self.faults is not None:
+            check_faults(self)
         return self
 
     # -- derived objects -----------------------------------------------------------------
@@ -640,6 +647,12 @@ class Scenario(ConfigModel):
         return design_formation(self)
 
     @cached_property
+    def fault_plan(self) -> FaultPlan | None:
+        """With a ``[faults]`` table: the mission's phases (:func:`plan_faults`, made once);
+        None without."""
+        return None if self.faults is None else plan_faults(self)
+
+    @cached_property
     def group_plan(self) -> GroupPlan | None:
         """With ``extra_targets``: which UAVs serve which target and each group's own
         scenario (:func:`plan_groups`); None with one target."""
@@ -652,6 +665,37 @@ class Scenario(ConfigModel):
         UAV m's unless ``formation.assignment`` reassigns them), shape (M, 2), m
         (read-only)."""
         return self.formation_design.slots
+
+    def restricted(self, members: list[int], leader: int, **changes: Any) -> Scenario:
+        """This scenario restricted to some of its UAVs: a group of a mission with several
+        targets (:func:`plan_groups`), or the swarm left after a failure
+        (:func:`crlbswarm.faults.plan_faults`).
+
+        Parameters
+        ----------
+        members : list of int
+            The UAVs (swarm indices, increasing): their count, start and radars are kept.
+        leader : int
+            The leader (a member).
+        **changes
+            Top-level fields to replace (``name``, ``target``, ``graph``, ...).
+
+        Returns
+        -------
+        Scenario
+            The scenario, validated.
+
+        Raises
+        ------
+        ScenarioError
+            When the UAVs cannot fly a valid mission.
+        """
+        data = {**self.model_dump(), **changes}
+        data["uavs"] = {**data["uavs"], "count": len(members), "leader": members.index(leader)}
+        if self.uavs.start is not None:
+            data["uavs"]["start"] = [self.uavs.start[m] for m in members]
+        data["radar"] = self.radar_model.take(members).to_dict()
+        return Scenario.from_dict(data, source="")
 
     # -- TOML ------------------------------------------------------------------------------
     @classmethod
@@ -1051,20 +1095,15 @@ def plan_groups(sc: Scenario) -> GroupPlan:
     except FieldError as exc:
         field = {"n_uavs": "uavs.count", "objective": "formation.objective"}
         raise FieldError(field.get(exc.field, "extra_targets"), exc.reason) from None
-    data = sc.model_dump()
+    guidance = {**sc.guidance.model_dump(), "planner": False}
     members, leaders, scenarios = [], [], []
     for g, uavs in enumerate(allocation.groups):
         lead = sc.uavs.leader if sc.uavs.leader in uavs else int(uavs[0])
-        part = {**data, "name": f"{sc.name}/group{g}", "target": targets[g].tolist(),
-                "extra_targets": []}  # fmt: skip
-        part["uavs"] = {**data["uavs"], "count": int(uavs.size),
-                        "leader": int(np.flatnonzero(uavs == lead)[0])}  # fmt: skip
-        if sc.uavs.start is not None:
-            part["uavs"]["start"] = [sc.uavs.start[m] for m in uavs]
-        part["radar"] = sc.radar_model.take(uavs).to_dict()
-        part["guidance"] = {**data["guidance"], "planner": False}
         try:
-            scenarios.append(Scenario.from_dict(part, source=""))
+            scenarios.append(sc.restricted(
+                uavs.tolist(), lead, name=f"{sc.name}/group{g}", target=targets[g].tolist(),
+                extra_targets=[], guidance=guidance,
+            ))  # fmt: skip
         except ScenarioError as exc:  # the group's own field and reason, in one line
             reason = f"{exc.field}: {exc.reason}" if exc.field else exc.reason
             raise FieldError(

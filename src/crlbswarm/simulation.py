@@ -21,15 +21,17 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
 
 from . import _validation as _v
-from .counter_rng import DISTURBANCE, LINKS, RANGE_NOISE, stream_key
+from .counter_rng import DISTURBANCE, LINKS, PHASE_STREAMS, RANGE_NOISE, stream_key
 from .errors import FieldError, SimulationDivergedError
+from .faults import FaultPlan, Phase
 from .fisher import crlb
+from .geometry import fitted_turn
 from .links import LINK_SERIES, LinkModel, link_model, link_state_bytes
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
@@ -405,6 +407,7 @@ class _ChunkBuffers:
         self.fim = np.empty((chunk_runs, k + 1, 3))
         self.x0 = np.zeros((chunk_runs, n_state))
         self.delta = np.empty((chunk_runs, m, 2))
+        self.velocity = np.zeros((chunk_runs, m, 2))  # (a mission starts at rest)
         self.status = np.empty(chunk_runs, dtype=np.int64)
         self.link_keys = np.empty((chunk_runs, 2), dtype=np.int64)
 
@@ -536,7 +539,7 @@ def _run_chunk(
     )  # fmt: skip
     inps = RunInputs(
         buf.start[:n], buf.keys[:n], batch.target[lo:hi], np.ascontiguousarray(truth[..., 2:]),
-        x0, buf.delta[:n], buf.ids[:n],
+        x0, buf.delta[:n], buf.ids[:n], buf.velocity[:n],
     )  # fmt: skip
     status = buf.status[:n]
     if n == 1:  # one run: the serial kernel (no parallel driver to compile for it), its
@@ -545,10 +548,11 @@ def _run_chunk(
         lio = None if link_io is None else (link_io[0][0], link_io[1][0])
         status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
                                 RunInputs(*(a[0] for a in inps)), *kernel_args,
-                                *layer_markers(sc), wide, _crowd(sc), links, lio)  # fmt: skip
+                                *layer_markers(sc), wide, _crowd(sc), links, lio,
+                                None)  # fmt: skip
     else:
         run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc),
-                  _crowd(sc), links, link_io)  # fmt: skip
+                  _crowd(sc), links, link_io, None)  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
@@ -560,6 +564,181 @@ def _run_chunk(
         batch.fim_sum[:, 1, 1] += summed[:, 1]
         batch.fim_sum[:, 0, 1] += summed[:, 2]
         batch.fim_sum[:, 1, 0] += summed[:, 2]
+
+
+# ---------------------------------------------------------------------------------------
+# Missions with faults: one phase after the other (crlbswarm.faults)
+# ---------------------------------------------------------------------------------------
+class _PhaseArguments(NamedTuple):
+    """A phase's kernel arguments (its graph and FIM weights in ``kernel[0]``) and its kept
+    rows: ``steps`` (the mission's kept steps in the phase), ``rows`` (their rows in the
+    batch) and ``local`` (their rows in the phase's own arrays), ``last`` (the row of its
+    last step, always kept)."""
+
+    kernel: tuple[SceneArrays, Any, Any, Any, MissionConstants] | None
+    rows: np.ndarray
+    local: np.ndarray
+    last: int
+    n_rows: int
+
+
+def _phase_arguments(sc: Scenario, ph: Phase, kept: np.ndarray) -> _PhaseArguments:
+    """The kernel arguments of a phase (None when its UAVs hover) and its kept rows."""
+    in_phase = np.flatnonzero((kept >= ph.start) & (kept <= ph.stop))
+    steps = kept[in_phase]
+    keep = np.full(ph.stop - ph.start + 1, -1, dtype=np.int64)
+    keep[steps - ph.start] = np.arange(steps.size)
+    last = int(keep[-1]) if keep[-1] >= 0 else steps.size
+    keep[-1] = last
+    if ph.scenario is None:
+        return _PhaseArguments(None, in_phase, np.arange(steps.size), last, steps.size + 1)
+    scene, index, ctl, rule, const = kernel_arguments(ph.scenario, 0)
+    scene = SceneArrays(
+        indptr=ph.indptr, indices=ph.indices, rects=scene.rects, circles=scene.circles,
+        f_mat=scene.f_mat, q_mat=scene.q_mat, p0=scene.p0, nodes=scene.nodes,
+        node_dist=scene.node_dist, next_node=scene.next_node, keep=keep,
+        snr=np.where(ph.frozen != 0, 0.0, scene.snr),
+    )  # fmt: skip
+    return _PhaseArguments((scene, index, ctl, rule, const), in_phase, np.arange(steps.size),
+                           last, max(last + 1, steps.size))  # fmt: skip
+
+
+def _run_phases(sc: Scenario, plan: FaultPlan, phases: list[_PhaseArguments], seeds: np.ndarray,
+                lo: int, batch: _Batch, buf: _ChunkBuffers) -> None:  # fmt: skip
+    """Simulate the runs ``lo .. lo + len(seeds) - 1`` of a mission with faults, one phase
+    after the other, each resuming from the state the last one stopped at."""
+    n = len(seeds)
+    hi = lo + n
+    truth = _draw_inputs(sc, seeds, buf)
+    batch.eta[lo:hi, 0] = 1.0
+    batch.target[lo:hi] = truth[..., :2]
+    q, v = buf.start[:n].copy(), np.zeros((n, sc.uavs.count, 2))
+    delta = buf.delta[:n].copy()
+    for p, (ph, args) in enumerate(zip(plan.phases, phases, strict=True)):
+        if ph.scenario is None or args.kernel is None:
+            _hover(sc, ph, args, lo, hi, batch, q)
+            continue
+        if ph.replan:
+            delta[:, ph.members] = _new_slots(ph.scenario, q[:, ph.members],
+                                              batch.target[lo:hi, ph.start])  # fmt: skip
+        out = _run_phase(p, ph, args, seeds, lo, batch, buf, truth, q, v, delta)
+        _record_phase(ph, args, out, lo, hi, batch, q, v)
+
+
+def _new_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Each run's slots of the re-planned formation, shape (B, M', 2), from the positions
+    ``q`` (B, M', 2) where the re-planning finds the UAVs and the target at ``target``
+    (B, 2): taken by the rule of ``formation.assignment`` (:func:`slot_offsets`); a regular
+    polygon, whose CRLB does not depend on its rotation, is first turned to fit the UAVs
+    (the rotation of least squares to their positions,
+    :func:`crlbswarm.geometry.fitted_turn`)."""
+    design = np.asarray(sc.target, dtype=float)
+    centre = design + sc.formation_design.centre_offset
+    out = np.empty_like(q)
+    for i in range(q.shape[0]):
+        p = q[i] - (target[i] - design)
+        out[i] = offsets = slot_offsets(sc, p, centre)
+        if sc.formation_design.regular:
+            turn = fitted_turn(offsets, p - centre)
+            if sc.formation.assignment == "optimal":
+                slots = (sc.slots - centre) @ turn.T
+                out[i] = slots[assign_slots(p, centre + slots, sc.uavs.leader)]
+            else:
+                out[i] = offsets @ turn.T
+    return out
+
+
+def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: int,
+               batch: _Batch, buf: _ChunkBuffers, truth: np.ndarray, q: np.ndarray,
+               v: np.ndarray, delta: np.ndarray) -> RunOutputs:  # fmt: skip
+    """Run one phase of a chunk in the kernel; returns its outputs."""
+    assert args.kernel is not None
+    assert ph.scenario is not None
+    n, k0, k1 = len(seeds), ph.start, ph.stop
+    ks, ms = k1 - k0, ph.members.size
+    traj = (n, args.n_rows, ms, 2)
+    out = RunOutputs(
+        np.empty(traj), np.empty(traj), np.empty((n, ks + 1, 2)), np.empty((n, ks + 1)),
+        np.empty((n, ks + 1)), np.empty((n, ks + 1)), np.empty((n, ks)),
+        np.zeros((n, ks + 1, 2)), np.zeros((n, ks + 1)), np.empty((n, ks + 1)),
+        np.empty((n, ks + 1, 2)), np.empty((n, ks + 1, 3)), np.empty((n, ks + 1)),
+        np.empty((n, ks + 1)),
+    )  # fmt: skip
+    out.eta[:, 0] = batch.eta[lo : lo + n, k0]
+    keys = np.array([stream_key(int(s), DISTURBANCE + p * PHASE_STREAMS)
+                     + stream_key(int(s), RANGE_NOISE + p * PHASE_STREAMS)
+                     for s in seeds], dtype=np.int64)  # fmt: skip
+    inp = RunInputs(
+        np.ascontiguousarray(q[:, ph.members]), keys,
+        np.ascontiguousarray(batch.target[lo : lo + n, k0 : k1 + 1]),
+        np.ascontiguousarray(truth[:, k0 : k1 + 1, 2:]), buf.x0[:n],
+        np.ascontiguousarray(delta[:, ph.members]),
+        np.ascontiguousarray(np.broadcast_to(ph.members, (n, ms))),
+        np.ascontiguousarray(v[:, ph.members]),
+    )  # fmt: skip
+    status = buf.status[:n]
+    frozen = ph.frozen if ph.frozen.any() else None
+    run_batch(tuple(out), tuple(inp), status, *args.kernel, *layer_markers(ph.scenario),
+              _crowd(ph.scenario), None, None, frozen)  # fmt: skip
+    bad = np.flatnonzero(status >= 0)
+    if bad.size:
+        raise _diverged(ph.scenario, lo + int(bad[0]), int(seeds[bad[0]]),
+                        k0 + int(status[bad[0]]))  # fmt: skip
+    return out
+
+
+def _record_phase(ph: Phase, args: _PhaseArguments, out: RunOutputs, lo: int, hi: int,
+                  batch: _Batch, q: np.ndarray, v: np.ndarray) -> None:  # fmt: skip
+    """Copy a phase's outputs into the batch (its step ``start`` overwritten), the UAVs
+    no longer flying held where they stopped, and carry its last state into ``q``, ``v``."""
+    k0, k1 = ph.start, ph.stop
+    steps = slice(k0, k1 + 1)
+    batch.vref[lo:hi, steps] = out.v_ref
+    batch.centroid[lo:hi, steps] = out.centroid
+    for name in ("eta", "clearance", "separation", "distance_to_go", "crlb", "centroid_error"):
+        getattr(batch, name)[lo:hi, steps] = getattr(out, name)
+    batch.cost[lo:hi, k0:k1] = out.cost
+    q[:, ph.members] = out.q[:, args.last]
+    v[:, ph.members] = out.v[:, args.last]
+    others = np.setdiff1d(np.arange(q.shape[1]), ph.members)
+    for row, j in zip(args.rows, args.local, strict=True):
+        batch.positions[lo:hi, row] = q
+        batch.positions[lo:hi, row][:, ph.members] = out.q[:, j]
+        batch.velocities[lo:hi, row] = 0.0
+        batch.velocities[lo:hi, row][:, ph.members] = out.v[:, j]
+        batch.velocities[lo:hi, row][:, others] = 0.0
+
+
+def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, batch: _Batch,
+           q: np.ndarray) -> None:  # fmt: skip
+    """A phase in which the UAVs hover (too few for a formation): every series holds its
+    last value, but the CRLB of the UAVs left, at the (moving) target."""
+    k0, k1 = ph.start, ph.stop
+    steps = slice(k0, k1 + 1)
+    target = batch.target[lo:hi, steps]
+    left = q[:, ph.members]
+    batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
+                                    sc.radar_model.take(ph.members))  # fmt: skip
+    centroid = left.mean(axis=1)
+    batch.centroid[lo:hi, steps] = centroid[:, None]
+    offset = centroid[:, None] - target
+    batch.centroid_error[lo:hi, steps] = np.hypot(offset[..., 0], offset[..., 1])
+    batch.vref[lo:hi, steps] = 0.0
+    batch.cost[lo:hi, k0:k1] = 0.0
+    for name in ("eta", "clearance", "separation", "distance_to_go"):
+        series = getattr(batch, name)
+        series[lo:hi, steps] = series[lo:hi, k0 : k0 + 1]
+    for row in args.rows:
+        batch.positions[lo:hi, row] = q
+        batch.velocities[lo:hi, row] = 0.0
+
+
+def _bound_steps(plan: FaultPlan, k_steps: int) -> np.ndarray:
+    """The bound of the formation flown at each step (a phase's from its start)."""
+    bound = np.empty(k_steps + 1)
+    for ph in plan.phases:
+        bound[ph.start : ph.stop + 1] = ph.bound
+    return bound
 
 
 def simulate(
@@ -633,8 +812,13 @@ def simulate(
     # for long batches so that progress is reported often.
     chunk_runs = _chunk_runs(n_runs, k_steps, m_uavs, link_bytes)
     buf = _ChunkBuffers(sc, chunk_runs, scene.p0.shape[0])
+    plan = sc.fault_plan
+    phases = None if plan is None else [_phase_arguments(sc, ph, kept) for ph in plan.phases]
     for lo in range(0, n_runs, chunk_runs):
-        _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args, links)
+        if plan is None or phases is None:
+            _run_chunk(sc, seed_arr[lo : lo + chunk_runs], lo, batch, buf, kernel_args, links)
+        else:
+            _run_phases(sc, plan, phases, seed_arr[lo : lo + chunk_runs], lo, batch, buf)
         if progress is not None:
             progress(min(lo + chunk_runs, n_runs))
     pcrb = None
@@ -662,10 +846,11 @@ def simulate(
         clearance=batch.clearance,
         separation=batch.separation,
         distance_to_go=batch.distance_to_go,
-        bound=sc.formation_design.bound,
+        bound=sc.formation_design.bound if plan is None else plan.phases[-1].bound,
         trajectory_stride=stride,
         centroid_error=batch.centroid_error,
         **_link_fields(batch.links),
+        bound_steps=None if plan is None else _bound_steps(plan, k_steps),
     )
 
 
@@ -795,7 +980,8 @@ def simulate_groups(
     )  # fmt: skip
     unused = np.zeros((n_runs, k1, 2))  # (the targets are in ``groups``)
     ids = np.broadcast_to(order.astype(np.int64), (n_runs, m_uavs)).copy()  # draws by swarm UAV
-    inps = RunInputs(q[:, 0], keys, unused, unused, np.zeros((n_runs, 2)), delta, ids)
+    inps = RunInputs(q[:, 0], keys, unused, unused, np.zeros((n_runs, 2)), delta, ids,
+                     np.zeros((n_runs, m_uavs, 2)))  # fmt: skip
     status = np.empty(n_runs, dtype=np.int64)
     run_group_batch(tuple(outs), tuple(inps), status, scene, index, ctl, rule, const, groups,
                     layer_markers(plan.scenarios[0])[0])  # fmt: skip

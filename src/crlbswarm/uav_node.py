@@ -379,7 +379,7 @@ def compile_laws(run: FlyRun) -> None:
              run.safe)  # fmt: skip
     uav_clearance(leader, q, rep, clear, run.scene, run.index, run.ctl)
     next_eta(cx, cy, sx, sy, eta, node, run.scene.rects, run.scene.circles, run.index,
-             run.scene, run.rule, run.const, run.route)  # fmt: skip
+             run.scene, run.rule, run.const, run.route, None)  # fmt: skip
     if run.track is not None:
         x, p_cov, work = run.x0.copy(), run.scene.p0.copy(), filter_work()
         ranges = np.array([measured_range(0, p, q[p, 0], q[p, 1], run.target[0, 0],
@@ -614,7 +614,7 @@ class UavProcess:
             self._move(k)
             next_value = next_eta(cx, cy, sx, sy, self.eta, self.node, run.scene.rects,
                                   run.scene.circles, run.index, run.scene, run.rule, run.const,
-                                  run.route)  # fmt: skip
+                                  run.route, None)  # fmt: skip
             if run.track is not None:
                 predict_into(self.x, self.p_cov, run.scene.f_mat, run.scene.q_mat, self.f_work)
         else:

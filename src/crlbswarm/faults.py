@@ -1,0 +1,428 @@
+r"""Failures during a mission: UAVs and links lost, and the swarm that re-forms (not in the
+paper).
+
+The scenario's ``[faults]`` table (:class:`FaultsConfig`) lists UAVs lost at given times
+(``uav_lost``, and ``leader_lost`` for whichever UAV leads at that time) and links lost
+(``link_lost``). :func:`plan_faults` turns it into the mission's **phases**: spans of steps
+over which the swarm's membership, graph, leader and formation are fixed. The simulator
+runs one phase after the other, each resuming from the state where the last one stopped
+(:func:`crlbswarm.simulate`). The choices (documented in ``docs/faults.md``):
+
+Loss
+    A lost UAV stops sending and stops moving (it hovers where it was lost, or has landed
+    there: its recorded position stays put) and no longer senses: its range leaves the FIM
+    at once. Its neighbours stop hearing it at once, and their laws of eqs. (14) and (19)
+    sum over the neighbours they hear, so its terms drop out; a lost leader sends no more
+    reference (the followers' consensus then runs among themselves). A lost link is no
+    longer heard by either end, from the step it is lost.
+Detection
+    Nobody is told. The swarm declares a UAV lost after ``timeout`` seconds without a
+    message from it (:attr:`FaultsConfig.timeout`; with perfect links a live UAV is never
+    silent, so nothing else is ever declared lost). Until then the formation keeps its
+    slots, its leader and its graph, minus what is silent.
+Re-planning (at the step a loss is declared)
+    The UAVs left, and the graph among them (the configured graph without the lost UAVs
+    and lost links), form the new swarm. If that graph has several parts, the part with
+    the most UAVs goes on (ties: the part of the current leader, then the part of the
+    lowest index) and the others hover where they are: the outcome is ``split``. If fewer
+    than three UAVs go on, none can fly a formation: all hover, the outcome is ``too_few``.
+    Otherwise the new swarm flies the optimal formation for its own UAVs (the scenario's
+    design over the same target, for these UAVs and their radars: :func:`phase_scenario`),
+    its slots taken by the rule of ``formation.assignment`` from the positions where the
+    re-planning finds the UAVs; the CRLB is then measured against the new bound.
+Leader election
+    If the leader is among the UAVs that go on, it stays leader; otherwise the UAV with the
+    lowest index among them leads. Every UAV can apply the rule alone, with no vote.
+Draws
+    Phase ``p`` draws the disturbance (and the links) from the streams ``stream + p *``
+    :data:`crlbswarm.counter_rng.PHASE_STREAMS` of the run's seed, so a run's bits do not
+    depend on its batch; phase 0 is the mission without faults, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Annotated
+
+import numpy as np
+from pydantic import Field
+
+from ._config import ConfigModel, PositiveFloat
+from ._validation import MIN_UAVS
+from .errors import FieldError, ScenarioError
+
+if TYPE_CHECKING:
+    from .scenario import Scenario
+
+__all__ = [
+    "FAULT_OUTCOMES",
+    "MAX_FAULTS",
+    "FaultPlan",
+    "FaultsConfig",
+    "LinkLoss",
+    "Phase",
+    "UavLoss",
+    "check_faults",
+    "phase_scenario",
+    "plan_faults",
+]
+
+#: Most events in a ``[faults]`` table (UAVs and links lost).
+MAX_FAULTS = 64
+
+#: The outcomes a fault can give a run (:data:`crlbswarm.results.OUTCOMES`): the swarm's
+#: graph fell into parts, or fewer than three UAVs were left to fly a formation.
+FAULT_OUTCOMES = ("split", "too_few")
+
+Time = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+Index = Annotated[int, Field(ge=0)]
+
+
+class UavLoss(ConfigModel):
+    """A UAV lost during the mission."""
+
+    uav: Index = Field(description="index of the UAV (0 .. M-1)")
+    time: Time = Field(description="time it is lost, s")
+
+
+class LinkLoss(ConfigModel):
+    """A link of the communication graph lost during the mission (both directions)."""
+
+    uavs: Annotated[list[Index], Field(min_length=2, max_length=2)] = Field(
+        description="the two UAVs [m, p] of a link of the graph"
+    )
+    time: Time = Field(description="time it is lost, s")
+
+
+class FaultsConfig(ConfigModel):
+    """Failures during the mission: the scenario's ``[faults]`` table (none: no failures).
+    The model is described in the module docstring and ``docs/faults.md``."""
+
+    timeout: PositiveFloat = Field(
+        1.0, description="silence after which the swarm declares a UAV lost and re-plans, s"
+    )
+    uav_lost: Annotated[list[UavLoss], Field(max_length=MAX_FAULTS)] = Field(
+        default_factory=list, description="UAVs lost: [[faults.uav_lost]] uav = m, time = t"
+    )
+    leader_lost: Time | None = Field(
+        None, description="time the UAV leading at that time is lost, s (none: never)"
+    )
+    link_lost: Annotated[list[LinkLoss], Field(max_length=MAX_FAULTS)] = Field(
+        default_factory=list,
+        description="links lost: [[faults.link_lost]] uavs = [m, p], time = t",
+    )
+
+
+def check_faults(sc: Scenario) -> None:
+    """The checks of a ``[faults]`` table against its scenario (called by its validation).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario, with ``faults``.
+
+    Raises
+    ------
+    FieldError
+        Naming the field: a UAV or link that does not exist, a UAV lost twice, or a layer
+        the faults do not support yet.
+    """
+    faults = sc.faults
+    assert faults is not None
+    unsupported = (
+        ("extra_targets", bool(sc.extra_targets), "several targets"),
+        ("links", sc.links is not None, "a [links] table (faults assume perfect links)"),
+        ("estimation.enabled", sc.estimation.enabled, "sensing in the loop"),
+    )
+    for name, on, what in unsupported:
+        if on:
+            raise FieldError("faults", f"is not supported yet with {what} ({name})")
+    n = sc.uavs.count
+    seen: set[int] = set()
+    for i, loss in enumerate(faults.uav_lost):
+        if loss.uav >= n:
+            raise FieldError(f"faults.uav_lost[{i}].uav", f"must be below uavs.count = {n}")
+        if loss.uav in seen:
+            raise FieldError(f"faults.uav_lost[{i}].uav", f"UAV {loss.uav} is lost twice")
+        seen.add(loss.uav)
+    edges = {tuple(e) for e in sc.adjacency.edges.tolist()}
+    for i, cut in enumerate(faults.link_lost):
+        a, b = sorted(cut.uavs)
+        if (a, b) not in edges:
+            raise FieldError(
+                f"faults.link_lost[{i}].uavs", f"[{a}, {b}] is not a link of the graph"
+            )
+
+
+@dataclass(frozen=True)
+class Phase:
+    """A span of steps with a fixed swarm (:func:`plan_faults`).
+
+    Parameters
+    ----------
+    start, stop : int
+        Its first and last steps (the next phase starts at ``stop``).
+    members : ndarray of int64
+        The UAVs it simulates (swarm indices, increasing): the swarm of the last
+        re-planning, lost ones not yet declared included.
+    frozen : ndarray of int8
+        Per member, 1 if it is lost and not yet declared lost (it does not move).
+    indptr, indices : ndarray of int64
+        The graph its laws use, over the members (CSR): the scenario's graph without the
+        links to frozen members and without the lost links.
+    scenario : Scenario or None
+        The swarm's scenario (its formation, leader, gains); None when the UAVs hover
+        (too few).
+    replan : bool
+        Whether the members take new slots at ``start``.
+    bound : float
+        The CRLB bound of the formation flown (when the UAVs hover, that of the last
+        formation), m^2.
+    """
+
+    start: int
+    stop: int
+    members: np.ndarray
+    frozen: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    scenario: Scenario | None
+    replan: bool
+    bound: float
+
+
+@dataclass(frozen=True)
+class FaultPlan:
+    """The phases of a mission with faults (:func:`plan_faults`).
+
+    Parameters
+    ----------
+    phases : tuple of Phase
+        In order; they cover steps 0 .. K.
+    outcome : str
+        ``""``, or one of :data:`FAULT_OUTCOMES`.
+    events : tuple of str
+        What happens, one line per event (``"t = 100 s: UAV 2 lost"``).
+    """
+
+    phases: tuple[Phase, ...]
+    outcome: str
+    events: tuple[str, ...] = field(default=())
+
+
+def phase_scenario(sc: Scenario, members: np.ndarray, leader: int, edges: np.ndarray,
+                   label: str) -> Scenario:  # fmt: skip
+    """The scenario of the UAVs ``members`` flying on after a re-planning.
+
+    It is ``sc`` restricted to those UAVs (:meth:`crlbswarm.Scenario.restricted`: their
+    count, radars and start), ``leader`` (a swarm index) as leader, the graph ``edges``
+    (swarm indices), no faults; the formation is then the scenario's design for these
+    UAVs.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The mission's scenario.
+    members : ndarray of int
+        The UAVs (swarm indices, increasing).
+    leader : int
+        The leader (a member).
+    edges : ndarray of int, shape (E, 2)
+        The graph among them (swarm indices).
+    label : str
+        Said in an error: when the re-planning happens.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario.
+
+    Raises
+    ------
+    FieldError
+        ``faults``, when these UAVs cannot fly a valid mission.
+    """
+    local = {int(m): i for i, m in enumerate(members)}
+    graph = {"kind": "edges", "edges": [[local[int(a)], local[int(b)]] for a, b in edges]}
+    try:
+        return sc.restricted(members.tolist(), leader, name=f"{sc.name}/{len(members)} UAVs",
+                             faults=None, graph=graph)  # fmt: skip
+    except ScenarioError as exc:
+        reason = f"{exc.field}: {exc.reason}" if exc.field else exc.reason
+        raise FieldError(
+            "faults", f"{label}, UAVs {members.tolist()} cannot fly on: {reason}"
+        ) from None
+
+
+def _csr(members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The CSR rows of ``edges`` (swarm indices) over ``members``, neighbours sorted (a
+    member may have none)."""
+    local = np.full(int(members.max()) + 1, -1, dtype=np.int64)
+    local[members] = np.arange(members.size)
+    e = local[edges] if edges.size else np.empty((0, 2), np.int64)
+    rows = np.concatenate([e[:, 0], e[:, 1]])
+    cols = np.concatenate([e[:, 1], e[:, 0]])
+    order = np.lexsort((cols, rows))
+    indptr = np.zeros(members.size + 1, dtype=np.int64)
+    np.add.at(indptr, rows + 1, 1)
+    return np.cumsum(indptr), cols[order].astype(np.int64)
+
+
+def _parts(members: list[int], edges: set[tuple[int, int]]) -> list[list[int]]:
+    """The connected parts of the graph ``edges`` over ``members`` (each sorted)."""
+    neighbours: dict[int, list[int]] = {m: [] for m in members}
+    for a, b in edges:
+        if a in neighbours and b in neighbours:
+            neighbours[a].append(b)
+            neighbours[b].append(a)
+    parts, seen = [], set()
+    for m in members:
+        if m in seen:
+            continue
+        stack, part = [m], []
+        seen.add(m)
+        while stack:
+            x = stack.pop()
+            part.append(x)
+            for y in neighbours[x]:
+                if y not in seen:
+                    seen.add(y)
+                    stack.append(y)
+        parts.append(sorted(part))
+    return parts
+
+
+@dataclass
+class _Swarm:
+    """The planner's state: the swarm flying, what is silent, what is lost."""
+
+    members: list[int]
+    leader: int
+    edges: set[tuple[int, int]]
+    scenario: Scenario | None
+    bound: float
+    silent: set[int] = field(default_factory=set)
+    cut: set[tuple[int, int]] = field(default_factory=set)
+    outcome: str = ""
+
+
+def _events(sc: Scenario) -> tuple[dict[int, list[int | str]], dict[int, list[tuple[int, int]]],
+                                    int]:  # fmt: skip
+    """The losses by step (a UAV index, or "leader"), the links lost by step, and the
+    detection delay in steps."""
+    faults = sc.faults
+    assert faults is not None
+    dt, k_steps = sc.time.step, sc.time.steps
+    losses: dict[int, list[int | str]] = {}
+    for loss in faults.uav_lost:
+        losses.setdefault(round(loss.time / dt), []).append(loss.uav)
+    if faults.leader_lost is not None:
+        losses.setdefault(round(faults.leader_lost / dt), []).append("leader")
+    cuts: dict[int, list[tuple[int, int]]] = {}
+    for cut in faults.link_lost:
+        a, b = sorted(cut.uavs)
+        cuts.setdefault(round(cut.time / dt), []).append((a, b))
+    losses = {k: v for k, v in losses.items() if k < k_steps}
+    cuts = {k: v for k, v in cuts.items() if k < k_steps}
+    return losses, cuts, max(1, math.ceil(faults.timeout / dt - 1e-9))
+
+
+def plan_faults(sc: Scenario) -> FaultPlan:
+    """The phases of the mission of a scenario with a ``[faults]`` table.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario (``sc.faults`` not None).
+
+    Returns
+    -------
+    FaultPlan
+        The phases, the outcome and the events.
+
+    Raises
+    ------
+    FieldError
+        ``faults``, when the UAVs left after a re-planning cannot fly a valid mission.
+    """
+    losses, cuts, delay = _events(sc)
+    dt, k_steps = sc.time.step, sc.time.steps
+    swarm = _Swarm(list(range(sc.uavs.count)), sc.uavs.leader,
+                   {(int(a), int(b)) for a, b in sc.adjacency.edges}, sc,
+                   float(sc.formation_design.bound))  # fmt: skip
+    detect: dict[int, list[int]] = {}
+    steps = sorted({0, k_steps, *losses, *cuts})
+    phases: list[Phase] = []
+    events: list[str] = []
+    k, replan = 0, False
+    while k < k_steps:
+        for what in losses.get(k, []):
+            uav = swarm.leader if what == "leader" else int(what)
+            if uav in swarm.members and uav not in swarm.silent:
+                swarm.silent.add(uav)
+                detect.setdefault(k + delay, []).append(uav)
+                events.append(f"t = {k * dt:g} s: UAV {uav} lost")
+        for a, b in cuts.get(k, []):
+            swarm.cut.add((a, b))
+            detect.setdefault(k + delay, [])
+            events.append(f"t = {k * dt:g} s: link {a}-{b} lost")
+        if k in detect and swarm.scenario is not None:
+            replan = _replan(sc, swarm, detect.pop(k), k, events)
+        later = [s for s in (*steps, *detect) if s > k]
+        stop = min(min(later), k_steps)
+        phases.append(_phase(swarm, k, stop, replan))
+        k, replan = stop, False
+    return FaultPlan(tuple(phases), swarm.outcome, tuple(events))
+
+
+def _replan(sc: Scenario, swarm: _Swarm, declared: list[int], k: int, events: list[str]) -> bool:
+    """Re-plan at step ``k``: drop the UAVs ``declared`` lost and the lost links, keep the
+    part that goes on, elect its leader, design its formation. Returns whether the
+    members take new slots."""
+    dt = sc.time.step
+    label = f"after the re-planning at t = {k * dt:g} s"
+    gone = set(declared)
+    left = [m for m in swarm.members if m not in gone]
+    swarm.edges -= swarm.cut
+    swarm.cut = set()
+    swarm.silent -= gone
+    parts = _parts(left, swarm.edges)
+    parts.sort(key=lambda p: (-len(p), swarm.leader not in p, p[0]))
+    keep = parts[0]
+    if len(parts) > 1:
+        swarm.outcome = "split"
+        events.append(f"t = {k * dt:g} s: the graph split into {[p for p in parts]}; "
+                      f"UAVs {keep} go on, the others hover")  # fmt: skip
+    swarm.members = keep
+    if len(keep) < MIN_UAVS:
+        swarm.outcome = "too_few"
+        swarm.scenario = None
+        events.append(f"t = {k * dt:g} s: {len(keep)} UAVs left, too few for a formation: "
+                      "they hover")  # fmt: skip
+        return False
+    if swarm.leader not in keep:
+        swarm.leader = keep[0]
+    inner = np.array(sorted(e for e in swarm.edges if e[0] in keep and e[1] in keep),
+                     dtype=np.int64).reshape(-1, 2)  # fmt: skip
+    swarm.scenario = phase_scenario(sc, np.array(keep), swarm.leader, inner, label)
+    swarm.bound = float(swarm.scenario.formation_design.bound)
+    events.append(
+        f"t = {k * dt:g} s: re-planned for UAVs {keep}, leader {swarm.leader}, bound "
+        f"{swarm.bound:.4g} m^2"
+    )
+    return bool(gone) or len(parts) > 1
+
+
+def _phase(swarm: _Swarm, start: int, stop: int, replan: bool) -> Phase:
+    """The phase of the swarm's present state from ``start`` to ``stop``."""
+    members = np.array(swarm.members, dtype=np.int64)
+    frozen = np.array([m in swarm.silent for m in swarm.members], dtype=np.int8)
+    live = [
+        e for e in swarm.edges
+        if e not in swarm.cut and e[0] in swarm.members and e[1] in swarm.members
+        and e[0] not in swarm.silent and e[1] not in swarm.silent
+    ]  # fmt: skip
+    indptr, indices = _csr(members, np.array(sorted(live), dtype=np.int64).reshape(-1, 2))
+    return Phase(start, stop, members, frozen, indptr, indices, swarm.scenario, replan,
+                 swarm.bound)  # fmt: skip
