@@ -82,7 +82,7 @@ def _synthetic_columns(v: int, seeds: np.ndarray, rng: np.random.Generator) -> d
     """Metrics of made-up runs: every outcome, NaN convergence times where a run did not
     converge, infinite clearances (no obstacles) for some variants, a NaN separation."""
     n = seeds.size
-    weights = np.array([1.0, 2.0 + v, 1.0, 0.5 if v % 3 else 0.0])
+    weights = np.array([1.0, 2.0 + v, 1.0, 0.5 if v % 3 else 0.0, 0.2, 0.0 if v % 2 else 0.1])
     outcome = rng.choice(np.array(OUTCOMES), size=n, p=weights / weights.sum())
     if v == 5:  # no run of this variant converges: its convergence statistics are missing
         outcome[outcome == "converged"] = "timeout"
