@@ -692,8 +692,12 @@ def plot_mission_timeseries(  # long: three panels and their legends
                          label=label if axis is ax_crlb else None)  # fmt: skip
     ax_crlb.plot(t, result.crlb[b], color="C0", label="CRLB at the UAV positions")
     bound = formation_labels(result.scenario)["bound"]
-    ax_crlb.axhline(result.bound, color="k", ls="--", lw=1.0,
-                    label=f"{bound} = {result.bound:.3g} m²")  # fmt: skip
+    if result.bound_steps is None:
+        ax_crlb.axhline(result.bound, color="k", ls="--", lw=1.0,
+                        label=f"{bound} = {result.bound:.3g} m²")  # fmt: skip
+    else:  # (faults: the bound of the formation flown, re-planned when UAVs are lost)
+        ax_crlb.step(t, result.bound_steps, where="post", color="k", ls="--", lw=1.0,
+                     label=f"its formation's bound ({result.bound:.3g} m² last)")  # fmt: skip
     ax_crlb.set_yscale("log")
     ax_crlb.set_ylabel(r"CRLB (m$^2$)")
     ax_crlb.legend(fontsize=8)

@@ -387,7 +387,9 @@ class MissionResult:
         return {
             "time_s": self.time,
             "crlb_m2": self.crlb[b],
-            "bound_m2": np.full(self.time.shape, self.bound),
+            "bound_m2": np.full(self.time.shape, self.bound)
+            if self.bound_steps is None
+            else self.bound_steps,
             "cost": np.append(self.cost[b], np.nan),
             "eta": self.eta[b],
             "min_clearance_m": self.clearance[b],
