@@ -242,8 +242,8 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
     Raises
     ------
     FieldError
-        (field ``scenario``) For a scenario with several targets; (``seed``) for an
-        invalid seed.
+        (field ``scenario``) For a scenario with several targets; (``faults``) for one with
+        a ``[faults]`` table (not flown yet); (``seed``) for an invalid seed.
     """
     if not isinstance(scenario, Scenario):
         raise FieldError(
@@ -252,6 +252,12 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
     if scenario.extra_targets:
         raise FieldError(
             "scenario", "has extra_targets (several targets): fly flies one formation"
+        )
+    if scenario.faults is not None:
+        raise FieldError(
+            "faults",
+            "crlbswarm fly does not run a [faults] table yet (crlbswarm simulate "
+            "does); remove it to fly the mission",
         )
     sc, seed = scenario, _v.seed(seed, "seed")
     scene, index, ctl, rule, const = kernel_arguments(sc, 0)
