@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crlbswarm import Scenario, load_results, load_scenario, simulate
+from crlbswarm import Scenario, crlb_bound, load_results, load_scenario, simulate
 from crlbswarm.cli import main
 from crlbswarm.flynet import (
     LOG,
@@ -151,34 +151,57 @@ def test_ctrl_c_stops_every_process_and_keeps_what_was_recorded(flight):
     assert np.all(np.isfinite(result.crlb))
 
 
-def test_a_uav_killed_outright_does_not_hang_the_others(flight):
-    """SIGKILL to UAV 1 mid-flight (stepped, 3 UAVs): the others see it gone, fly to the
-    end and exit; the recording ends at the last step every UAV logged, and up to there it
-    is the simulation."""
+def killed_flight(flight, uav: int, at: float, count: int = 4, duration: float = 30.0):
+    """A stepped flight of the paper scenario with ``count`` UAVs in which UAV ``uav``'s
+    process kills itself (SIGKILL) at ``at`` s; the launcher's status and output, the
+    scenario flown, the result and fly.json."""
     key, tmp = flight
-    scenario = short("paper", 150.0, count=3)  # (1500 steps: a few seconds of flight)
-    path = tmp / "three.toml"
+    scenario = short("paper", duration, count=count)
+    path = tmp / "swarm.toml"
     path.write_text(scenario.to_toml())
-    proc = launch(key, path, tmp / "out", "--seed", "2")
-    time.sleep(0.5)
-    uav1 = [
-        pid for pid in members(key)
-        if b"--uav\x001\x00" in Path(f"/proc/{pid}/cmdline").read_bytes()
-    ]  # fmt: skip
-    assert len(uav1) == 1
-    os.kill(uav1[0], signal.SIGKILL)
-    status, out, _ = finish(proc, 60.0)
-    assert status == 1
-    assert "uav/1 -9" in out
+    proc = launch(key, path, tmp / "out", "--seed", "3", "--kill", f"{uav}@{at}")
+    status, out, err = finish(proc, 90.0)  # (a hang guard)
     assert members(key) == []
     record = json.loads((tmp / "out" / "fly.json").read_text())
-    assert list(record["lost"]) == ["uav 1"]
-    recorded = record["recorded_steps"]
-    assert 1 <= recorded < 1500
-    assert record["lost"]["uav 1"] == recorded + 1
-    result = load_results(tmp / "out")
-    truth = simulate(scenario, seed=2)
-    np.testing.assert_array_equal(result.positions[0], truth.positions[0, : recorded + 1])
+    return status, out, err, scenario, load_results(tmp / "out"), record
+
+
+@pytest.mark.parametrize("uav", [2, 0], ids=["follower", "leader"])
+def test_a_uav_killed_outright_is_lost_and_the_others_re_form(flight, uav):
+    """SIGKILL to UAV ``uav``'s process at t = 10 s (stepped, 4 UAVs on a ring): the
+    others see it gone, the leader (UAV 0, or after it is lost UAV 1, the lowest index left)
+    re-plans the formation for the 3 left, and they fly to the end. Until the loss the
+    flight is the simulation; the lost UAV stays where it was; the bound after the
+    re-planning is the 3-UAV bound; the saved scenario tells the loss as a [faults] table
+    whose plan re-plans at the same step, for the same UAVs, with the same leader."""
+    status, out, err, scenario, result, record = killed_flight(flight, uav, 10.0)
+    assert status == 1
+    assert f"uav/{uav} -9" in out
+    assert list(record["lost"]) == [f"uav {uav}"]
+    assert record["complete"]
+    leader = 1 if uav == 0 else 0
+    assert f"leader {leader}" in err
+    faults = result.scenario.faults
+    assert faults is not None
+    assert [u.uav for u in faults.uav_lost] == [uav]
+    plan = result.scenario.fault_plan
+    replan = plan.phases[-1]
+    assert replan.members.tolist() == [m for m in range(4) if m != uav]
+    assert replan.scenario.uavs.leader == replan.members.tolist().index(leader)
+    k = replan.start
+    assert 99 <= k <= 101  # (the loss at step 100, seen that step or the one after)
+    three = crlb_bound(3, scenario.altitude, scenario.radar_model)
+    four = crlb_bound(4, scenario.altitude, scenario.radar_model)
+    np.testing.assert_allclose(result.bound_steps[k:], three, rtol=1e-12)
+    np.testing.assert_allclose(result.bound_steps[: k - 1], four, rtol=1e-12)
+    truth = simulate(scenario, seed=3)
+    np.testing.assert_array_equal(result.positions[0, : k - 2], truth.positions[0, : k - 2])
+    held = result.positions[0, k:, uav]
+    assert np.all(held == held[0])
+    others = [m for m in range(4) if m != uav]  # (they fly on)
+    moved = result.positions[0, -1, others] - result.positions[0, k, others]
+    assert np.all(np.hypot(*moved.T) > 0.0)
+    assert np.all(np.isfinite(result.crlb))
 
 
 def free_endpoints(n: int) -> list[str]:

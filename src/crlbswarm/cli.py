@@ -14,6 +14,7 @@ atomically (:mod:`crlbswarm.output`). Nothing heavy is imported before it is nee
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import warnings
@@ -620,7 +621,22 @@ def _add_fly(sub: Any) -> None:
     _option(fly, fields, "--key", field="key", default=None, metavar="PREFIX",
             help="the flight's key prefix, the same for every member (by hand: default "
             "crlbswarm/fly; the launcher: one per flight)")  # fmt: skip
+    _option(fly, fields, "--kill", field="kill", type=_kill_spec, default=None,
+            metavar="UAV@TIME", help="UAV's process kills itself (SIGKILL) when the mission "
+            "reaches TIME s: a UAV lost, the others re-form (e.g. 2@100)")  # fmt: skip
     fly.add_argument("--parent", type=int, default=None, help=argparse.SUPPRESS)
+
+
+def _kill_spec(text: str) -> tuple[int, float]:
+    """``UAV@TIME`` of ``fly --kill``."""
+    uav, sep, at = text.partition("@")
+    try:
+        value = (int(uav), float(at))
+    except ValueError:
+        value = None
+    if not sep or value is None or not math.isfinite(value[1]):
+        raise argparse.ArgumentTypeError(f"expected UAV@TIME (e.g. 2@100), got {text!r}")
+    return value
 
 
 def _interrupt(signum: int, frame: Any) -> None:
@@ -644,15 +660,16 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     try:
         if args.uav is None and not args.recorder:
             return _fly_launcher(args, scenario)
-        from .fly import run_recorder
+        from .fly import check_kill, run_recorder
         from .uav_node import fly_run, run_uav
 
         options = FlightOptions(
             key=args.key or DEFAULT_KEY, listen=tuple(args.listen or ["tcp/127.0.0.1:0"]),
             connect=tuple(args.connect or ()), mode=args.mode, timeout=args.timeout,
-            loss=args.loss, delay=args.delay, parent=args.parent,
+            loss=args.loss, delay=args.delay, parent=args.parent, kill=args.kill,
         )  # fmt: skip
         run = fly_run(scenario, args.seed)
+        check_kill(args.kill, run)
         if args.recorder:
             report = run_recorder(run, args.out, options, args.force)
             return 130 if report.interrupted else 0 if report.complete else 1
@@ -679,7 +696,8 @@ def _fly_launcher(args: argparse.Namespace, scenario: Any) -> int:
     try:
         statuses = fly(scenario, args.out, seed=args.seed, mode=args.mode, timeout=args.timeout,
                        loss=args.loss, delay=args.delay, force=args.force, key=args.key,
-                       listen=args.listen, connect=args.connect or ())  # fmt: skip
+                       listen=args.listen, connect=args.connect or (),
+                       kill=args.kill)  # fmt: skip
     except KeyboardInterrupt:
         print("crlbswarm: interrupted: every process stopped; the recorder kept the steps "
               f"recorded ({args.out / 'fly.json'})", file=sys.stderr)  # fmt: skip

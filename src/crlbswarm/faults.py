@@ -62,8 +62,10 @@ __all__ = [
     "FaultsConfig",
     "LinkLoss",
     "Phase",
+    "SwarmDecision",
     "UavLoss",
     "check_faults",
+    "decide",
     "phase_scenario",
     "plan_faults",
 ]
@@ -376,6 +378,65 @@ def plan_faults(sc: Scenario) -> FaultPlan:
     return FaultPlan(tuple(phases), swarm.outcome, tuple(events))
 
 
+@dataclass(frozen=True)
+class SwarmDecision:
+    """Who flies on after a re-planning (:func:`decide`).
+
+    Parameters
+    ----------
+    parts : list of list of int
+        The parts of the graph among the UAVs left, the part that goes on first.
+    members : list of int
+        The part that goes on (swarm indices, increasing).
+    leader : int
+        Its leader.
+    edges : ndarray of int64, shape (E, 2)
+        The graph among its members (swarm indices).
+    outcome : str
+        ``""``, ``"split"`` (the graph fell into parts) or ``"too_few"`` (fewer than
+        three UAVs go on: they hover).
+    """
+
+    parts: list[list[int]]
+    members: list[int]
+    leader: int
+    edges: np.ndarray
+    outcome: str
+
+
+def decide(members: list[int], leader: int, edges: set[tuple[int, int]],
+           lost: set[int]) -> SwarmDecision:  # fmt: skip
+    """The re-planning's decision (the rules of the module docstring): drop the UAVs
+    ``lost``, keep the part of the graph that goes on, elect its leader. The simulator
+    (:func:`plan_faults`) and every UAV of ``crlbswarm fly`` decide with it.
+
+    Parameters
+    ----------
+    members : list of int
+        The swarm before (swarm indices).
+    leader : int
+        Its leader.
+    edges : set of tuple of int
+        The links among them (``(a, b)``, ``a < b``), lost links left out.
+    lost : set of int
+        The UAVs declared lost.
+
+    Returns
+    -------
+    SwarmDecision
+        The parts, the members and leader that go on, their graph, the outcome.
+    """
+    left = [m for m in members if m not in lost]
+    parts = _parts(left, edges)
+    parts.sort(key=lambda p: (-len(p), leader not in p, p[0]))
+    keep = parts[0] if parts else []
+    outcome = "too_few" if len(keep) < MIN_UAVS else "split" if len(parts) > 1 else ""
+    inner = np.array(sorted(e for e in edges if e[0] in keep and e[1] in keep),
+                     dtype=np.int64).reshape(-1, 2)  # fmt: skip
+    new_leader = leader if leader in keep else (keep[0] if keep else leader)
+    return SwarmDecision(parts, keep, new_leader, inner, outcome)
+
+
 def _replan(sc: Scenario, swarm: _Swarm, declared: list[int], k: int, events: list[str]) -> bool:
     """Re-plan at step ``k``: drop the UAVs ``declared`` lost and the lost links, keep the
     part that goes on, elect its leader, design its formation. Returns whether the
@@ -383,29 +444,24 @@ def _replan(sc: Scenario, swarm: _Swarm, declared: list[int], k: int, events: li
     dt = sc.time.step
     label = f"after the re-planning at t = {k * dt:g} s"
     gone = set(declared)
-    left = [m for m in swarm.members if m not in gone]
     swarm.edges -= swarm.cut
     swarm.cut = set()
     swarm.silent -= gone
-    parts = _parts(left, swarm.edges)
-    parts.sort(key=lambda p: (-len(p), swarm.leader not in p, p[0]))
-    keep = parts[0]
+    choice = decide(swarm.members, swarm.leader, swarm.edges, gone)
+    parts, keep = choice.parts, choice.members
     if len(parts) > 1:
-        swarm.outcome = "split"
         events.append(f"t = {k * dt:g} s: the graph split into {[p for p in parts]}; "
                       f"UAVs {keep} go on, the others hover")  # fmt: skip
     swarm.members = keep
-    if len(keep) < MIN_UAVS:
-        swarm.outcome = "too_few"
+    if choice.outcome:
+        swarm.outcome = choice.outcome
+    if choice.outcome == "too_few":
         swarm.scenario = None
         events.append(f"t = {k * dt:g} s: {len(keep)} UAVs left, too few for a formation: "
                       "they hover")  # fmt: skip
         return False
-    if swarm.leader not in keep:
-        swarm.leader = keep[0]
-    inner = np.array(sorted(e for e in swarm.edges if e[0] in keep and e[1] in keep),
-                     dtype=np.int64).reshape(-1, 2)  # fmt: skip
-    swarm.scenario = phase_scenario(sc, np.array(keep), swarm.leader, inner, label)
+    swarm.leader = choice.leader
+    swarm.scenario = phase_scenario(sc, np.array(keep), swarm.leader, choice.edges, label)
     swarm.bound = float(swarm.scenario.formation_design.bound)
     events.append(
         f"t = {k * dt:g} s: re-planned for UAVs {keep}, leader {swarm.leader}, bound "

@@ -50,11 +50,13 @@ from .flynet import (
     DEFAULT_TIMEOUT,
     DONE,
     LOG,
+    LOG_FIELDS,
     RECORDER,
     FlightOptions,
     Inbox,
     Member,
     Packet,
+    SwarmBlock,
     done_key,
     import_zenoh,
     log_key,
@@ -64,14 +66,16 @@ from .mission_kernel import separation_of, step_state
 from .output import check_output_folder, write_json
 from .results import MissionResult, outcome_report
 from .scenario import Scenario
+from .simulation import phase_scene
 from .tracking import posterior_crlb
-from .uav_node import FlyRun, compile_laws, fly_run, wait_for_members
+from .uav_node import FlyRun, compile_laws, fly_run, phase_run, wait_for_members
 
 __all__ = [
     "FLY_FILE",
     "SHUTDOWN_GRACE",
     "FlightReport",
     "Recorder",
+    "check_kill",
     "cut_scenario",
     "fly",
     "record_step",
@@ -165,51 +169,101 @@ class Recorder:
         self.estimate = np.full((k1, 2), np.nan)
         self.estimate_variance = np.full(k1, np.nan)
         self.part = np.zeros((1, 8))
-        self.recorded = -1  # the last step every UAV logged, in a row from 0
+        self.recorded = -1  # the last step recorded, in a row from 0
         self.lost: dict[int, int] = {}  # UAV -> the step whose log never came
         self.late = np.zeros(n, dtype=np.int64)
         self.started = self.ended = math.nan
+        # the formation flown (re-planned when UAVs are lost), its run and bound per step
+        self.block = SwarmBlock(0, -1, False, run.leader, np.arange(n, dtype=np.int64),
+                                run.delta, np.empty(0))  # fmt: skip
+        self.brun: FlyRun | None = run
+        self.bounds = np.full(k1, float(run.scenario.formation_design.bound))
+        self.declared: dict[int, int] = {}  # UAV lost -> the step the swarm re-planned
 
     def record(self, k: int, packets: dict[int, Packet]) -> None:
-        """Record step ``k`` from every UAV's log: the states, the leader's eta, distance to
-        go and estimate, and the step's metrics as the kernel computes them
-        (:func:`record_step`, and the cost of the step before).
+        """Record step ``k`` from the UAVs' logs: the states (a UAV without a log held where
+        it was), the leader's eta, distance to go and estimate, the formation flown, and
+        the step's metrics as the kernel computes them (:func:`record_step`, over the
+        formation's UAVs that logged; the cost of the step before).
 
         Parameters
         ----------
         k : int
             The step (the steps before it are recorded).
         packets : dict
-            UAV -> its log of step ``k`` (:data:`crlbswarm.flynet.LOG_FIELDS`).
+            UAV -> its log of step ``k`` (:data:`crlbswarm.flynet.LOG_FIELDS`, then the
+            swarm it knows, :data:`crlbswarm.flynet.SWARM_FIELDS`).
         """
         run = self.run
-        leader = run.leader
-        clear = np.empty(run.m_uavs)
+        before = max(k - 1, 0)
+        self.positions[k] = self.positions[before] if k else run.start
+        self.velocities[k] = 0.0
+        clear = []
         for m, packet in packets.items():
             values = packet.values
             self.positions[k, m] = values[0:2]
             self.velocities[k, m] = values[2:4]
-            clear[m] = values[4]
+            clear.append(values[4])
             self.late[m] = int(values[10])
-        head = packets[leader].values
-        self.vref[k] = head[2:4]
-        self.eta[k], self.distance_to_go[k] = head[5], head[6]
-        self.estimate[k], self.estimate_variance[k] = head[7:9], head[9]
-        self.clearance[k] = clear.min()
-        self.separation[k] = record_step(
-            k, self.positions[k], self.velocities[k], run.target[k, 0], run.target[k, 1],
-            self.part, run.scene, run.const, self.centroid, self.fim, self.crlb,
-            self.centroid_error, run.crowd,
-        )  # fmt: skip
-        if k > 0:
-            self.cost[k - 1] = control_cost(
-                self.positions[k - 1], self.positions[k], run.delta, self.vref[k - 1],
-                run.const.dt, run.scene.indptr, run.scene.indices,
-            )  # fmt: skip
+            block = SwarmBlock.read(values, len(LOG_FIELDS))
+            if block is not None and block.newer_than(self.block):
+                self._adopt(block, k)
+        heads = [p.values for p in packets.values() if not math.isnan(p.values[5])]
+        if heads:  # (the leader's log; none while a lost leader is replaced: held)
+            head = heads[0]
+            self.vref[k] = head[2:4]
+            self.eta[k], self.distance_to_go[k] = head[5], head[6]
+            self.estimate[k], self.estimate_variance[k] = head[7:9], head[9]
+        elif k:
+            self.vref[k], self.eta[k] = self.vref[k - 1], self.eta[k - 1]
+            self.distance_to_go[k] = self.distance_to_go[k - 1]
+            self.estimate[k], self.estimate_variance[k] = self.estimate[k - 1], math.nan
+        self.clearance[k] = min(clear) if clear else math.inf
+        self._metrics(k, packets)
         self.recorded = k
 
+    def _metrics(self, k: int, packets: dict[int, Packet]) -> None:
+        """The CRLB, centroid, separation and cost of step ``k``: over every UAV (the
+        kernel's arrays) while none is lost, else over the formation's UAVs that logged."""
+        run = self.run
+        every = self.block.phase == 0 and len(packets) == run.m_uavs
+        rows = np.array([p for p in self.block.members.tolist() if p in packets], np.int64)
+        if every:
+            rows = np.arange(run.m_uavs)
+        scene, const = run.scene, run.const if self.brun is None else self.brun.const
+        if not every:
+            scene = phase_scene(scene, scene.indptr, scene.indices, scene.snr[rows], scene.keep)
+        q, v = self.positions[k][rows], self.velocities[k][rows]
+        self.separation[k] = record_step(
+            k, q, v, run.target[k, 0], run.target[k, 1], self.part, scene, const,
+            self.centroid, self.fim, self.crlb, self.centroid_error, run.crowd,
+        )  # fmt: skip
+        if k == 0:
+            return
+        brun = self.brun
+        if brun is None:  # (hovering: no formation, no cost)
+            self.cost[k - 1] = 0.0
+            return
+        members = self.block.members
+        self.cost[k - 1] = control_cost(
+            self.positions[k - 1][members], self.positions[k][members], brun.delta,
+            self.vref[k - 1], run.const.dt, brun.scene.indptr, brun.scene.indices,
+        )  # fmt: skip
+
+    def _adopt(self, block: SwarmBlock, k: int) -> None:
+        """Take a re-planned formation from step ``k`` on: its run (its bound, constants
+        and graph) and the UAVs it left out that are lost."""
+        for p in self.block.members.tolist():
+            if p not in block.members.tolist() and p in self.lost:
+                self.declared[p] = block.step
+        self.block = block
+        self.brun = None if block.hover else phase_run(self.run, block)
+        if self.brun is not None:
+            self.bounds[k:] = float(self.brun.scenario.formation_design.bound)
+
     def fly(self) -> None:
-        """Record every step (until every UAV is lost), then send the end of the flight."""
+        """Record every step (a UAV whose log does not come is lost: the recording goes on
+        without it, until every UAV is lost), then send the end of the flight."""
         run, inbox = self.run, self.member.inbox
         names = {m: member_name(m) for m in range(run.m_uavs)}
         patience = RECORDER_PATIENCE * self.options.timeout
@@ -220,17 +274,33 @@ class Recorder:
             packets = {p.sender: p for p in inbox.take(LOG, k) if p.step == k}
             for m in sorted(missing):
                 self.lost[m] = k
+                packets.pop(m, None)
                 print(f"crlbswarm fly: recorder: no log of UAV {m} for step {k}: "
-                      f"{'gone' if names[m] in inbox.gone else 'silent'}; the recording "
-                      f"ends at step {self.recorded}", file=sys.stderr, flush=True)  # fmt: skip
-            if self.recorded == k - 1 and len(packets) == run.m_uavs:
-                self.record(k, packets)
+                      f"{'gone' if names[m] in inbox.gone else 'silent'}; it is lost and "
+                      "held where it was", file=sys.stderr, flush=True)  # fmt: skip
             if len(self.lost) == run.m_uavs:
                 break
+            if self.recorded == k - 1:
+                self.record(k, packets)
         self.ended = time.monotonic()
         key = self.member.key
         self.member.publish(done_key(key), Packet(DONE, RECORDER, run.k_steps, run.k_steps,
                                                   np.empty(0)))  # fmt: skip
+
+    def scenario(self, steps: int, why: str) -> Scenario:
+        """The scenario of the result: the one flown, cut to ``steps`` if the flight ended
+        early (:func:`cut_scenario`), with the UAVs the swarm lost as a ``[faults]`` table
+        (each lost one step before the step the swarm re-planned at, with a timeout of one
+        step: :func:`crlbswarm.faults.plan_faults` then re-plans at the same steps, for
+        the same UAVs), when the scenario's layers allow one."""
+        run = self.run
+        sc = run.scenario
+        if self.declared and sc.links is None and run.track is None:
+            dt = sc.time.step
+            lost = [{"uav": p, "time": (k - 1) * dt} for p, k in sorted(self.declared.items())]
+            sc = Scenario.from_dict({**sc.model_dump(), "faults": {"timeout": dt,
+                                                                   "uav_lost": lost}})  # fmt: skip
+        return sc if steps == run.k_steps else cut_scenario(sc, steps, why)
 
     def result(self, why: str) -> MissionResult | None:
         """The recorded steps as a result.
@@ -244,13 +314,14 @@ class Recorder:
         -------
         MissionResult or None
             One run: the whole mission, or a mission cut to the steps recorded; None if
-            no step after the start was recorded.
+            no step after the start was recorded. With UAVs lost, ``bound_steps`` holds
+            the bound of the formation flown at each step.
         """
         run = self.run
         steps = self.recorded
         if steps < 1:
             return None
-        sc = run.scenario if steps == run.k_steps else cut_scenario(run.scenario, steps, why)
+        sc = self.scenario(steps, why)
         k1 = steps + 1
         pcrb = None
         if run.track is not None:
@@ -261,6 +332,7 @@ class Recorder:
             pcrb = posterior_crlb(fim, f_mat, q_mat, run.scene.p0, f_mat.shape[0],
                                   sc.estimation.measure_every)  # fmt: skip
         track = run.track is not None
+        replanned = self.block.phase > 0 or sc.faults is not None
         return MissionResult(
             scenario=sc, seeds=np.array([run.seed], dtype=np.int64),
             time=np.arange(k1) * sc.time.step, positions=self.positions[None, :k1].copy(),
@@ -271,7 +343,8 @@ class Recorder:
             pcrb=pcrb, eta=self.eta[None, :k1], crlb=self.crlb[None, :k1],
             cost=self.cost[None, : k1 - 1], clearance=self.clearance[None, :k1],
             separation=self.separation[None, :k1], distance_to_go=self.distance_to_go[None, :k1],
-            bound=sc.formation_design.bound, centroid_error=self.centroid_error[None, :k1],
+            bound=float(self.bounds[steps]), centroid_error=self.centroid_error[None, :k1],
+            bound_steps=self.bounds[:k1].copy() if replanned else None,
         )  # fmt: skip
 
 
@@ -468,7 +541,34 @@ def _member_command(scenario_file: Path, seed: int, options: FlightOptions, list
            options.key, "--listen", listen, "--parent", str(os.getpid())]  # fmt: skip
     for endpoint in connect:
         cmd += ["--connect", endpoint]
+    if options.kill is not None:
+        cmd += ["--kill", f"{options.kill[0]}@{options.kill[1]!r}"]
     return cmd + role
+
+
+def check_kill(kill: tuple[int, float] | None, run: FlyRun) -> None:
+    """Check a ``--kill UAV@TIME`` against the run.
+
+    Parameters
+    ----------
+    kill : tuple of (int, float) or None
+        The UAV and the time.
+    run : FlyRun
+        The run.
+
+    Raises
+    ------
+    FieldError
+        (field ``kill``) For a UAV that does not exist or a time outside the mission.
+    """
+    if kill is None:
+        return
+    uav, at = kill
+    if not 0 <= uav < run.m_uavs:
+        raise FieldError("kill", f"UAV {uav} does not exist (0 .. {run.m_uavs - 1})")
+    duration = run.k_steps * run.const.dt
+    if not 0.0 <= at <= duration:
+        raise FieldError("kill", f"time {at:g} s is outside the mission (0 .. {duration:g} s)")
 
 
 def _stop(procs: dict[str, subprocess.Popen[bytes]], grace: float) -> None:
@@ -515,6 +615,7 @@ def fly(
     key: str | None = None,
     listen: Sequence[str] | None = None,
     connect: Sequence[str] = (),
+    kill: tuple[int, float] | None = None,
 ) -> dict[str, int]:
     """Fly ``scenario`` with one process per UAV and a recorder, on this machine.
 
@@ -543,6 +644,9 @@ def fly(
         ports on 127.0.0.1).
     connect : sequence of str, default ()
         Endpoints every member connects to as well.
+    kill : tuple of (int, float), optional
+        ``(uav, time)``: UAV ``uav``'s process kills itself (SIGKILL) when the mission
+        reaches ``time`` s: a UAV lost; the others re-form (docs/fly.md).
 
     Returns
     -------
@@ -563,7 +667,8 @@ def fly(
     n = run.m_uavs
     options = FlightOptions(key=key or f"{DEFAULT_KEY}/{uuid.uuid4().hex[:12]}", mode=mode,
                             timeout=timeout, loss=loss, delay=delay,
-                            connect=tuple(connect))  # fmt: skip
+                            connect=tuple(connect), kill=kill)  # fmt: skip
+    check_kill(kill, run)
     check_output_folder(out, "out", new=True, overwrite=force)
     if listen is not None and len(listen) != n + 1:
         raise FieldError("listen", f"give one endpoint per member ({n + 1}: the recorder's, "

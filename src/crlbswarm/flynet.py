@@ -67,6 +67,7 @@ __all__ = [
     "START_TIMEOUT",
     "STATE",
     "STATE_FIELDS",
+    "SWARM_FIELDS",
     "FlightError",
     "FlightOptions",
     "Inbox",
@@ -74,6 +75,7 @@ __all__ = [
     "Member",
     "Packet",
     "ParentGone",
+    "SwarmBlock",
     "alive_key",
     "decode",
     "done_key",
@@ -134,6 +136,13 @@ LOG_FIELDS = (
 )  # fmt: skip
 
 _RETRY = {"period_init_ms": 100, "period_max_ms": 500, "period_increase_factor": 2}
+#: What every :data:`STATE` and :data:`LOG` message carries after its fields: the swarm as
+#: its sender knows it (:class:`SwarmBlock`): the re-planning it follows (``phase``, 0 for
+#: the mission's start, and the ``step`` it was decided at), whether the UAVs hover, the
+#: leader, the members, their slots and the leader's estimate of the target.
+SWARM_FIELDS = ("phase", "step", "hover", "leader", "n", "members...", "delta...", "nx",
+                "estimate...")  # fmt: skip
+
 _MAGIC = b"CS"
 _VERSION = 1
 _HEADER = struct.Struct("<2sBBIIi")  # magic, version, kind, sender, step, stamp
@@ -332,6 +341,9 @@ class FlightOptions:
         Steps a swarm message is held back at the sender.
     parent : int or None, default None
         The launcher's process id (the member exits when it is gone).
+    kill : tuple of (int, float) or None, default None
+        ``(uav, time)``: that UAV's process kills itself (SIGKILL) when its mission
+        reaches ``time`` (s): a UAV lost, for tests and demonstrations.
 
     Raises
     ------
@@ -347,6 +359,7 @@ class FlightOptions:
     loss: float = 0.0
     delay: int = 0
     parent: int | None = None
+    kill: tuple[int, float] | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -427,6 +440,100 @@ def decode(data: bytes) -> Packet | None:
         return None
     values = np.frombuffer(data, dtype="<f8", offset=_HEADER.size).astype(float)
     return Packet(kind, sender, step, stamp, values)
+
+
+@dataclass(frozen=True, eq=False)
+class SwarmBlock:
+    """The swarm as a UAV of a flight knows it: the formation flown since the last
+    re-planning (:mod:`crlbswarm.faults`), told in every message (:data:`SWARM_FIELDS`).
+
+    Parameters
+    ----------
+    phase : int
+        Re-plannings so far (0: the mission's own formation).
+    step : int
+        The step the last one was decided at (-1: none).
+    hover : bool
+        Whether the UAVs hover (too few to fly a formation).
+    leader : int
+        The leader.
+    members : ndarray of int64, shape (M',)
+        The UAVs flying the formation (swarm indices, increasing).
+    delta : ndarray, shape (M', 2)
+        Their slot offsets from the formation's centre, m.
+    estimate : ndarray, shape (n,)
+        The leader's filter state (sensing in the loop; empty without).
+    """
+
+    phase: int
+    step: int
+    hover: bool
+    leader: int
+    members: np.ndarray
+    delta: np.ndarray
+    estimate: np.ndarray
+
+    def newer_than(self, other: SwarmBlock) -> bool:
+        """Whether this re-planning comes after ``other``'s.
+
+        Parameters
+        ----------
+        other : SwarmBlock
+            Another block.
+
+        Returns
+        -------
+        bool
+            Later phase, or the same phase decided at a later step.
+        """
+        return (self.phase, self.step) > (other.phase, other.step)
+
+    def values(self, estimate: np.ndarray | None = None) -> np.ndarray:
+        """The block as message values (:data:`SWARM_FIELDS`).
+
+        Parameters
+        ----------
+        estimate : ndarray, optional
+            The estimate to tell instead of the block's own (the leader's current one).
+
+        Returns
+        -------
+        ndarray
+            The values.
+        """
+        n = self.members.shape[0]
+        x = self.estimate if estimate is None else estimate
+        head = [self.phase, self.step, float(self.hover), self.leader, n]
+        return np.concatenate([head, self.members, self.delta.ravel(), [x.shape[0]], x])
+
+    @classmethod
+    def read(cls, values: np.ndarray, start: int) -> SwarmBlock | None:
+        """The block in ``values`` from ``start`` (None if there is none, or it is cut).
+
+        Parameters
+        ----------
+        values : ndarray
+            A message's values.
+        start : int
+            Where the block starts (after the message's own fields).
+
+        Returns
+        -------
+        SwarmBlock or None
+            The block.
+        """
+        v = values[start:]
+        if v.shape[0] < 5:
+            return None
+        n = int(v[4])
+        if n < 0 or v.shape[0] < 6 + 3 * n:
+            return None
+        nx = int(v[5 + 3 * n])
+        if v.shape[0] != 6 + 3 * n + nx:
+            return None
+        return cls(int(v[0]), int(v[1]), bool(v[2]), int(v[3]),
+                   v[5 : 5 + n].astype(np.int64), v[5 + n : 5 + 3 * n].reshape(n, 2).copy(),
+                   v[6 + 3 * n :].copy())  # fmt: skip
 
 
 class Injection:

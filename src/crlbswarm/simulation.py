@@ -61,6 +61,8 @@ __all__ = [
     "kernel_arguments",
     "layer_markers",
     "link_arguments",
+    "phase_scene",
+    "replanned_slots",
     "run_keys",
     "simulate",
     "simulate_groups",
@@ -412,21 +414,27 @@ class _ChunkBuffers:
         self.link_keys = np.empty((chunk_runs, 2), dtype=np.int64)
 
 
-def run_keys(seed: int) -> np.ndarray:
+def run_keys(seed: int, phase: int = 0) -> np.ndarray:
     """The Philox keys of a run's disturbance and range noise (``RunInputs.keys``).
 
     Parameters
     ----------
     seed : int
         The run's seed.
+    phase : int, default 0
+        The phase of a mission with faults (:mod:`crlbswarm.faults`): its streams are
+        those plus ``phase *`` :data:`crlbswarm.counter_rng.PHASE_STREAMS`.
 
     Returns
     -------
     ndarray of int64, shape (4,)
         :func:`crlbswarm.counter_rng.stream_key` of (seed, DISTURBANCE), then of (seed,
-        RANGE_NOISE).
+        RANGE_NOISE) (each stream shifted by the phase).
     """
-    return np.array(stream_key(seed, DISTURBANCE) + stream_key(seed, RANGE_NOISE), np.int64)
+    shift = phase * PHASE_STREAMS
+    return np.array(
+        stream_key(seed, DISTURBANCE + shift) + stream_key(seed, RANGE_NOISE + shift), np.int64
+    )
 
 
 def target_stream(seed: int) -> np.random.Generator:
@@ -593,14 +601,39 @@ def _phase_arguments(sc: Scenario, ph: Phase, kept: np.ndarray) -> _PhaseArgumen
     if ph.scenario is None:
         return _PhaseArguments(None, in_phase, np.arange(steps.size), last, steps.size + 1)
     scene, index, ctl, rule, const = kernel_arguments(ph.scenario, 0)
-    scene = SceneArrays(
-        indptr=ph.indptr, indices=ph.indices, rects=scene.rects, circles=scene.circles,
-        f_mat=scene.f_mat, q_mat=scene.q_mat, p0=scene.p0, nodes=scene.nodes,
-        node_dist=scene.node_dist, next_node=scene.next_node, keep=keep,
-        snr=np.where(ph.frozen != 0, 0.0, scene.snr),
-    )  # fmt: skip
+    scene = phase_scene(scene, ph.indptr, ph.indices, np.where(ph.frozen != 0, 0.0, scene.snr),
+                        keep)  # fmt: skip
     return _PhaseArguments((scene, index, ctl, rule, const), in_phase, np.arange(steps.size),
                            last, max(last + 1, steps.size))  # fmt: skip
+
+
+def phase_scene(scene: SceneArrays, indptr: np.ndarray, indices: np.ndarray, snr: np.ndarray,
+                keep: np.ndarray) -> SceneArrays:  # fmt: skip
+    """``scene`` with another graph, FIM weights and kept rows (a phase of a mission with
+    faults, or the UAVs a flight's recorder counts).
+
+    Parameters
+    ----------
+    scene : SceneArrays
+        The scenario's arrays (:func:`kernel_arguments`).
+    indptr, indices : ndarray of int64
+        The graph (CSR).
+    snr : ndarray, shape (M,)
+        Each UAV's weight in the FIM (:attr:`SceneArrays.snr`; 0 leaves it out).
+    keep : ndarray of int64
+        Each step's kept row (-1: not kept).
+
+    Returns
+    -------
+    SceneArrays
+        The arrays.
+    """
+    return SceneArrays(
+        indptr=indptr, indices=indices, rects=scene.rects, circles=scene.circles,
+        f_mat=scene.f_mat, q_mat=scene.q_mat, p0=scene.p0, nodes=scene.nodes,
+        node_dist=scene.node_dist, next_node=scene.next_node, keep=keep,
+        snr=np.ascontiguousarray(snr, dtype=float),
+    )  # fmt: skip
 
 
 def _run_phases(sc: Scenario, plan: FaultPlan, phases: list[_PhaseArguments], seeds: np.ndarray,
@@ -619,33 +652,47 @@ def _run_phases(sc: Scenario, plan: FaultPlan, phases: list[_PhaseArguments], se
             _hover(sc, ph, args, lo, hi, batch, q)
             continue
         if ph.replan:
-            delta[:, ph.members] = _new_slots(ph.scenario, q[:, ph.members],
-                                              batch.target[lo:hi, ph.start])  # fmt: skip
+            for i in range(n):
+                delta[i, ph.members] = replanned_slots(ph.scenario, q[i, ph.members],
+                                                       batch.target[lo + i, ph.start])  # fmt: skip
         out = _run_phase(p, ph, args, seeds, lo, batch, buf, truth, q, v, delta)
         _record_phase(ph, args, out, lo, hi, batch, q, v)
 
 
-def _new_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Each run's slots of the re-planned formation, shape (B, M', 2), from the positions
-    ``q`` (B, M', 2) where the re-planning finds the UAVs and the target at ``target``
-    (B, 2): taken by the rule of ``formation.assignment`` (:func:`slot_offsets`); a regular
-    polygon, whose CRLB does not depend on its rotation, is first turned to fit the UAVs
-    (the rotation of least squares to their positions,
-    :func:`crlbswarm.geometry.fitted_turn`)."""
+def replanned_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The slots of a re-planned formation (:mod:`crlbswarm.faults`) for one run.
+
+    The UAVs take the slots of ``sc``'s formation by the rule of ``formation.assignment``
+    (:func:`slot_offsets`) from the positions where the re-planning finds them; a regular
+    polygon, whose CRLB does not depend on its rotation, is first turned to fit them (the
+    rotation of least squares, :func:`crlbswarm.geometry.fitted_turn`). The simulator and
+    the leader of ``crlbswarm fly`` re-plan with it.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario of the UAVs that go on (:func:`crlbswarm.faults.phase_scenario`).
+    q : ndarray, shape (M', 2)
+        Their positions, m.
+    target : ndarray, shape (2,)
+        The target's position then, m.
+
+    Returns
+    -------
+    ndarray, shape (M', 2)
+        Each UAV's offset from the formation's centre, m.
+    """
     design = np.asarray(sc.target, dtype=float)
     centre = design + sc.formation_design.centre_offset
-    out = np.empty_like(q)
-    for i in range(q.shape[0]):
-        p = q[i] - (target[i] - design)
-        out[i] = offsets = slot_offsets(sc, p, centre)
-        if sc.formation_design.regular:
-            turn = fitted_turn(offsets, p - centre)
-            if sc.formation.assignment == "optimal":
-                slots = (sc.slots - centre) @ turn.T
-                out[i] = slots[assign_slots(p, centre + slots, sc.uavs.leader)]
-            else:
-                out[i] = offsets @ turn.T
-    return out
+    p = q - (np.asarray(target, dtype=float) - design)
+    offsets = slot_offsets(sc, p, centre)
+    if not sc.formation_design.regular:
+        return offsets
+    turn = fitted_turn(offsets, p - centre)
+    if sc.formation.assignment != "optimal":
+        return offsets @ turn.T
+    slots = (sc.slots - centre) @ turn.T
+    return slots[assign_slots(p, centre + slots, sc.uavs.leader)]
 
 
 def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: int,
@@ -665,9 +712,7 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
         np.empty((n, ks + 1)),
     )  # fmt: skip
     out.eta[:, 0] = batch.eta[lo : lo + n, k0]
-    keys = np.array([stream_key(int(s), DISTURBANCE + p * PHASE_STREAMS)
-                     + stream_key(int(s), RANGE_NOISE + p * PHASE_STREAMS)
-                     for s in seeds], dtype=np.int64)  # fmt: skip
+    keys = np.stack([run_keys(int(s), p) for s in seeds])
     inp = RunInputs(
         np.ascontiguousarray(q[:, ph.members]), keys,
         np.ascontiguousarray(batch.target[lo : lo + n, k0 : k1 + 1]),

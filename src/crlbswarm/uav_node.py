@@ -37,6 +37,8 @@ numbers the kernel uses, so the flight is the simulation, bit for bit.
 from __future__ import annotations
 
 import math
+import os
+import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -49,18 +51,21 @@ from . import _validation as _v
 from .counter_rng import RANGE_NOISE, normal_pair
 from .errors import FieldError
 from .estimation import noisy_range
+from .faults import decide, phase_scenario
 from .flynet import (
     DONE,
     LOG,
     NO_STAMP,
     START_TIMEOUT,
     STATE,
+    STATE_FIELDS,
     FlightError,
     FlightOptions,
     Inbox,
     Injection,
     Member,
     Packet,
+    SwarmBlock,
     done_key,
     log_key,
     member_name,
@@ -84,6 +89,7 @@ from .scenario import Scenario
 from .simulation import (
     kernel_arguments,
     layer_markers,
+    replanned_slots,
     run_keys,
     slot_offsets,
     start_positions,
@@ -99,6 +105,7 @@ __all__ = [
     "fly_run",
     "leader_reference",
     "measured_range",
+    "phase_run",
     "run_uav",
     "uav_clearance",
     "uav_move",
@@ -202,25 +209,6 @@ class FlyRun:
         """
         indptr, indices = self.scene.indptr, self.scene.indices
         return [int(p) for p in indices[indptr[m] : indptr[m + 1]]]
-
-    def senders(self, m: int) -> list[int]:
-        """The UAVs whose states UAV ``m`` needs at each step: the leader needs every
-        follower (the centroid; the ranges with sensing in the loop); a follower its
-        neighbours and the leader (eta and v*), or every UAV with the safety filter on.
-
-        Parameters
-        ----------
-        m : int
-            The UAV.
-
-        Returns
-        -------
-        list of int
-            The senders, in order.
-        """
-        if m == self.leader or self.safe is not None:
-            return [p for p in range(self.m_uavs) if p != m]
-        return sorted({*self.neighbours(m), self.leader} - {m})
 
 
 def fly_run(scenario: Scenario, seed: int) -> FlyRun:
@@ -359,6 +347,43 @@ def _leader_outputs(k_steps: int) -> RunOutputs:
     )  # fmt: skip
 
 
+def phase_run(base: FlyRun, block: SwarmBlock) -> FlyRun:
+    """The run of the formation a re-planning made (``block``): the scenario of the UAVs
+    that go on (:func:`crlbswarm.faults.phase_scenario`), its laws' arguments, the slots
+    the block tells, the keys of the phase (:func:`crlbswarm.simulation.run_keys`) and the
+    members' swarm indices as the UAV words of their draws.
+
+    Parameters
+    ----------
+    base : FlyRun
+        The flight's run (phase 0).
+    block : SwarmBlock
+        The formation (not hovering).
+
+    Returns
+    -------
+    FlyRun
+        The phase's run (``base`` itself for phase 0); its rows are the members'.
+    """
+    if block.phase == 0:
+        return base
+    members = block.members
+    inside = set(members.tolist())
+    pairs = [e for e in base.scenario.adjacency.edges.tolist() if set(e) <= inside]
+    edges = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    sc = phase_scenario(base.scenario, members, block.leader, edges,
+                        f"after the re-planning at step {block.step}")  # fmt: skip
+    scene, index, ctl, rule, const = kernel_arguments(sc, 0)
+    safe, route, track = layer_markers(sc)
+    return FlyRun(
+        scenario=sc, seed=base.seed, scene=scene, index=index, ctl=ctl, rule=rule, const=const,
+        safe=safe, route=route, track=track, crowd=base.crowd, start=base.start[members],
+        delta=np.ascontiguousarray(block.delta), target=base.target,
+        target_velocity=base.target_velocity, x0=base.x0, keys=run_keys(base.seed, block.phase),
+        ids=members.copy(),
+    )  # fmt: skip
+
+
 def compile_laws(run: FlyRun) -> None:
     """Compile (or load from Numba's cache) every law a UAV of ``run`` calls, by calling
     each once on scratch copies: the launcher does it before it starts the processes, which
@@ -430,7 +455,8 @@ def wait_for_members(member: Member, run: FlyRun, timeout: float = START_TIMEOUT
 
 
 class UavProcess:
-    """UAV ``m`` of a flight: its state, what it holds of the others', and its step.
+    """UAV ``m`` of a flight: its state, what it holds of the others', the formation it
+    flies (:class:`crlbswarm.flynet.SwarmBlock`) and its step.
 
     Parameters
     ----------
@@ -446,116 +472,237 @@ class UavProcess:
 
     def __init__(self, run: FlyRun, m: int, options: FlightOptions, member: Member) -> None:
         n = run.m_uavs
-        self.run, self.m, self.options, self.member = run, m, options, member
-        self.is_leader = m == run.leader
+        self.base, self.m, self.options, self.member = run, m, options, member
         self.q, self.v = run.start.copy(), np.zeros((n, 2))  # (the take-off states: known)
         self.q_next, self.v_next = self.q.copy(), self.v.copy()
-        self.u, self.rep, self.clear = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n)
-        self.d_work = np.zeros((n, 2))
-        rows = max(n - 1 + run.scene.rects.shape[0] + run.scene.circles.shape[0], 1)
-        self.a_work, self.b_work = np.empty((rows, 2)), np.empty(rows)
-        self.part = np.zeros((1, 8))
+        self.rep, self.clear = np.zeros((n, 2)), np.zeros(n)
         self.eta, self.vref = 1.0, np.zeros(2)
         # each UAV's last range, where it was measured, and whether it is fused yet
         self.ranges, self.range_q = np.full(n, np.nan), run.start.copy()
         self.unfused = np.zeros(n, dtype=bool)
         self.stamps = np.zeros(n, dtype=np.int64)  # the step of each UAV's state held
-        self.senders = run.senders(m)
         self.names = {p: member_name(p) for p in range(n)}
-        self.lost: set[int] = set()
+        self.lost: set[int] = set()  # UAVs whose member is gone
         self.late = 0  # steps it went on without a state it waited for
         self.warned: set[int] = set()
         self.injection = Injection(run.seed, m, options.loss, options.delay)
-        if self.is_leader:
-            self.out = _leader_outputs(run.k_steps)
-            self.x, self.p_cov = run.x0.copy(), run.scene.p0.copy()
-            self.f_work = filter_work()
-            self.node = -1
+        self.kill_step = -1
+        if options.kill is not None and options.kill[0] == m:
+            self.kill_step = round(options.kill[1] / run.const.dt)
+        self.x, self.p_cov = run.x0.copy(), run.scene.p0.copy()
+        self.f_work = filter_work()
+        self.node = -1
+        self.out = _leader_outputs(run.k_steps)
+        self.leader_x = np.empty(0)  # the last estimate the leader sent (a new leader's start)
+        block = SwarmBlock(0, -1, False, run.leader, np.arange(n, dtype=np.int64),
+                           run.delta.copy(), np.empty(0))  # fmt: skip
+        self.block = block
+        self.leading = False
+        self._enter(block, run)
+
+    # -- the formation flown -------------------------------------------------------------
+    def _enter(self, block: SwarmBlock, prun: FlyRun | None) -> None:
+        """Fly the formation of ``block`` (its run ``prun``; None: the UAVs hover)."""
+        m = self.m
+        takes_over = block.phase > 0 and block.leader == m and self.block.leader != m
+        self.block, self.prun = block, prun
+        self.hovering = prun is None or m not in block.members.tolist()
+        self.leader = block.leader
+        self.leading = not self.hovering and block.leader == m
+        if self.hovering or prun is None:
+            return
+        k = block.members.shape[0]
+        self.local = int(np.flatnonzero(block.members == m)[0])
+        self.qc, self.vc = np.zeros((k, 2)), np.zeros((k, 2))
+        self.qnc, self.vnc = np.zeros((k, 2)), np.zeros((k, 2))
+        self.u, self.rep_c, self.clear_c = np.zeros((k, 2)), np.zeros((k, 2)), np.zeros(k)
+        self.d_work = np.zeros((k, 2))
+        rows = max(k - 1 + prun.scene.rects.shape[0] + prun.scene.circles.shape[0], 1)
+        self.a_work, self.b_work = np.empty((rows, 2)), np.empty(rows)
+        self.part = np.zeros((1, 8))
+        if takes_over and self.leading:  # (a new leader: the filter from the last estimate
+            self.node = -1  # the old leader sent, with the prior's covariance)
+            if self.leader_x.shape[0] == self.x.shape[0]:
+                self.x = self.leader_x.copy()
+            self.p_cov = self.base.scene.p0.copy()
+
+    def _adopt(self, block: SwarmBlock) -> None:
+        """Take a newer formation, told by the UAV that re-planned."""
+        _say(f"uav {self.m}: re-planned at step {block.step}: UAVs {block.members.tolist()}, "
+             f"leader {block.leader}{', hovering' if block.hover else ''}")  # fmt: skip
+        self._enter(block, None if block.hover else phase_run(self.base, block))
+
+    def _replan(self, k: int) -> None:
+        """The leader's re-planning at step ``k`` when members are gone: the decision of
+        :func:`crlbswarm.faults.decide`, the formation for the UAVs that go on
+        (:func:`crlbswarm.faults.phase_scenario`) and their slots
+        (:func:`crlbswarm.simulation.replanned_slots`), from the states it holds."""
+        block, base = self.block, self.base
+        members = block.members.tolist()
+        gone = {p for p in members if p in self.lost}
+        if not gone:
+            return
+        edges = {(int(a), int(b)) for a, b in base.scenario.adjacency.edges}
+        choice = decide(members, block.leader, edges, gone)
+        keep = np.array(choice.members, dtype=np.int64)
+        hover = choice.outcome == "too_few"
+        delta = np.zeros((keep.shape[0], 2))
+        if not hover:
+            sc = phase_scenario(base.scenario, keep, choice.leader, choice.edges,
+                                f"after the re-planning at step {k}")  # fmt: skip
+            delta = replanned_slots(sc, self.q[keep], base.target[k])
+        estimate = self.x.copy() if base.track is not None else np.empty(0)
+        new = SwarmBlock(block.phase + 1, k, hover, choice.leader, keep, delta, estimate)
+        self._adopt(new)
+
+    def senders(self) -> list[int]:
+        """The UAVs whose states this UAV needs at a step: the leader needs every member
+        (the centroid; the ranges with sensing in the loop); a follower its neighbours
+        and the leader (eta and v*), or every member with the safety filter on.
+
+        Returns
+        -------
+        list of int
+            The senders (swarm indices), in order, lost ones left out.
+        """
+        m, prun = self.m, self.prun
+        members = self.block.members.tolist()
+        if self.hovering or prun is None:
+            return []
+        if self.leading or prun.safe is not None:
+            wanted = set(members)
+        else:
+            ids = prun.ids
+            wanted = {int(ids[p]) for p in prun.neighbours(self.local)} | {self.leader}
+        return sorted(wanted - {m} - self.lost)
 
     # -- messages ----------------------------------------------------------------------
     def _send_state(self, k: int, measured: float) -> None:
         """Send the swarm state of step ``k`` through the injected loss and delay."""
         m = self.m
-        eta = self.eta if self.is_leader else math.nan
-        values = np.array([self.q[m, 0], self.q[m, 1], self.v[m, 0], self.v[m, 1], eta,
-                           measured])  # fmt: skip
+        eta = self.eta if self.leading else math.nan
+        told = self.x if self.leading and self.base.track is not None else None
+        values = np.concatenate([[self.q[m, 0], self.q[m, 1], self.v[m, 0], self.v[m, 1], eta,
+                                  measured], self.block.values(told)])  # fmt: skip
         sent = self.injection.outgoing(k, values)
         stamp, carried = (NO_STAMP, np.empty(0)) if sent is None else sent
         self.member.publish(state_key(self.member.key, m), Packet(STATE, m, k, stamp, carried))
 
     def _absorb(self, packet: Packet) -> None:
-        """Take a neighbour's state (if newer than the one held)."""
+        """Take a UAV's state (if newer than the one held), and the formation it tells if
+        that is newer."""
         p, values = packet.sender, packet.values
         if packet.stamp == NO_STAMP or packet.stamp < self.stamps[p] or p == self.m:
             return
         self.stamps[p] = packet.stamp
         self.q[p] = values[0:2]
         self.v[p] = values[2:4]
-        if p == self.run.leader:
+        if p == self.leader and not math.isnan(values[4]):
             self.eta = float(values[4])
             self.vref[:] = values[2:4]
         if not math.isnan(values[5]):
             self.ranges[p], self.range_q[p], self.unfused[p] = values[5], values[0:2], True
+        block = SwarmBlock.read(values, len(STATE_FIELDS))
+        if block is None:
+            return
+        if p == self.leader and block.estimate.shape[0]:
+            self.leader_x = block.estimate
+        if block.newer_than(self.block):
+            self._adopt(block)
 
     def _receive(self, k: int) -> None:
         """Stepped: wait for the senders' states of step ``k`` (at most the timeout) and take
-        them; real time: take the newest state of each sender."""
+        them; real time: take the newest state of each UAV. A member that is gone is lost:
+        a lost leader is replaced by the member of lowest index left (which then leads:
+        it re-plans at its next step)."""
         inbox = self.member.inbox
         if self.options.mode == "realtime":
-            for p in self.senders:
+            for p in range(self.base.m_uavs):
                 packet = inbox.latest.get((STATE, p))
                 if packet is not None:
                     self._absorb(packet)
-            return
-        wanted = [p for p in self.senders if p not in self.lost]
-        timeout = self.options.timeout
+            missing = {p for p in self.senders() if self.names[p] in inbox.gone}
+        else:
+            missing = self._wait_states(k)
+        for p in sorted(missing):
+            if self.names[p] in inbox.gone:
+                if p not in self.lost:
+                    self.lost.add(p)
+                    _say(f"uav {self.m}: UAV {p} is gone (step {k})")
+                continue
+            self.late += 1
+            if p not in self.warned:  # (said once; fly.json counts them)
+                self.warned.add(p)
+                _say(f"uav {self.m}: no state of UAV {p} for step {k} within "
+                     f"{self.options.timeout:g} s; going on with the one of step "
+                     f"{self.stamps[p]} (and so on whenever it is late: fly.json counts "
+                     "the steps)")  # fmt: skip
+        if self.leader in self.lost and not self.hovering:  # (elect: lowest index left)
+            left = [p for p in self.block.members.tolist() if p not in self.lost]
+            self.leader = min(left)
+            self.leading = self.leader == self.m
+            if not self.leading and self.options.mode == "stepped":  # (its state of step k)
+                inbox.wait_step(STATE, k, [self.leader], self.options.timeout, self.names)
+                for packet in inbox.take(STATE, k):
+                    self._absorb(packet)
+
+    def _wait_states(self, k: int) -> set[int]:
+        """Stepped: wait for the senders' states of step ``k``, take every state received,
+        and return the senders whose state did not come."""
+        inbox, timeout = self.member.inbox, self.options.timeout
+        wanted = self.senders()
         missing = inbox.wait_step(STATE, k, wanted, timeout, self.names)
-        leader = self.run.leader
+        leader = self.leader
         if leader in missing:  # (the leader may itself have waited a timeout for a follower)
             missing = (missing - {leader}) | inbox.wait_step(
                 STATE, k, [leader], timeout, self.names
             )
         for packet in inbox.take(STATE, k):
             self._absorb(packet)
-        for p in sorted(missing):
-            if self.names[p] in inbox.gone:
-                self.lost.add(p)
-                _say(f"uav {self.m}: UAV {p} is gone (step {k}); holding its last state")
-                continue
-            self.late += 1
-            if p not in self.warned:  # (said once; fly.json counts them)
-                self.warned.add(p)
-                _say(f"uav {self.m}: no state of UAV {p} for step {k} within {timeout:g} s; "
-                     f"going on with the one of step {self.stamps[p]} (and so on whenever "
-                     "it is late: fly.json counts the steps)")  # fmt: skip
+        return missing
 
     def _send_log(self, k: int, extra: tuple[float, ...]) -> None:
         """Send the true state of step ``k`` (and the leader's metrics) to the recorder."""
         m = self.m
-        values = np.array([self.q[m, 0], self.q[m, 1], self.v[m, 0], self.v[m, 1],
-                           self.clear[m], *extra, float(self.late)])  # fmt: skip
+        values = np.concatenate([[self.q[m, 0], self.q[m, 1], self.v[m, 0], self.v[m, 1],
+                                  self.clear[m], *extra, float(self.late)],
+                                 self.block.values()])  # fmt: skip
         self.member.publish(log_key(self.member.key, m), Packet(LOG, m, k, k, values))
 
     # -- the step ----------------------------------------------------------------------
     def _measure(self, k: int) -> float:
         """The range measured at step ``k`` with sensing in the loop (NaN at other steps)."""
-        run, m = self.run, self.m
-        if run.track is None or k % run.const.measure_every:
+        run, m = self.base, self.m
+        if run.track is None or k % run.const.measure_every or self.hovering:
             return math.nan
         r = measured_range(k, m, self.q[m, 0], self.q[m, 1], run.target[k, 0],
                            run.target[k, 1], run.keys, run.const)  # fmt: skip
         self.ranges[m], self.range_q[m], self.unfused[m] = r, self.q[m], True
         return float(r)
 
+    def _gather(self) -> None:
+        """The members' states held, in the formation's order (its kernel's rows)."""
+        members = self.block.members
+        self.qc[:] = self.q[members]
+        self.vc[:] = self.v[members]
+
     def _move(self, k: int) -> None:
-        """Step 2 for this UAV (``uav_move``), then its state of step ``k + 1``."""
-        run, m = self.run, self.m
-        ok = uav_move(k, m, self.q, self.q_next, self.v, self.v_next, run.delta, self.eta,
-                      self.vref, self.u, self.rep, self.clear, self.d_work, self.a_work,
-                      self.b_work, self.part, run.scene, run.index, run.ctl, run.const,
-                      run.keys, run.ids, run.safe)  # fmt: skip
+        """Step 2 for this UAV (``uav_move`` on its row of the formation's arrays), then
+        its state of step ``k + 1``; a hovering UAV stays where it is."""
+        m = self.m
+        if self.hovering or self.prun is None:
+            self.q_next[m], self.v_next[m] = self.q[m], 0.0
+            return
+        pr, row = self.prun, self.local
+        self._gather()
+        ok = uav_move(k, row, self.qc, self.qnc, self.vc, self.vnc, pr.delta, self.eta,
+                      self.vref, self.u, self.rep_c, self.clear_c, self.d_work, self.a_work,
+                      self.b_work, self.part, pr.scene, pr.index, pr.ctl, pr.const, pr.keys,
+                      pr.ids, pr.safe)  # fmt: skip
         if not ok:
             raise FlightError(f"uav {m}: its position ran away at step {k + 1}")
+        self.q_next[m], self.v_next[m] = self.qnc[row], self.vnc[row]
+        self.clear[m] = self.clear_c[row]
 
     def _advance(self) -> None:
         """Take the state of the next step."""
@@ -564,21 +711,22 @@ class UavProcess:
         self.v[m] = self.v_next[m]
 
     def _follower_step(self, k: int) -> None:
-        """A follower's step ``k``: send, receive, move, log."""
+        """A follower's (or a hovering UAV's) step ``k``: send, receive, move, log."""
         self._send_state(k, self._measure(k))
-        self._receive(k)
-        if k < self.run.k_steps:
+        if not self.hovering:
+            self._receive(k)
+        if k < self.base.k_steps:
             self._move(k)
         else:
-            uav_clearance(self.m, self.q, self.rep, self.clear, self.run.scene, self.run.index,
-                          self.run.ctl)  # fmt: skip
+            uav_clearance(self.m, self.q, self.rep, self.clear, self.base.scene,
+                          self.base.index, self.base.ctl)  # fmt: skip
         nan = math.nan
         self._send_log(k, (nan,) * 5)
 
     def _fuse(self, k: int) -> tuple[float, float, float, float]:
         """The leader's goal: the filter's estimate after fusing the ranges measured at step
         ``k`` (sensing in the loop), or the true target; with its velocity."""
-        run = self.run
+        run = self.base
         if run.track is None:
             tx, ty = run.target[k]
             tvx, tvy = run.target_velocity[k]
@@ -596,52 +744,64 @@ class UavProcess:
                 float(self.x[3]) if moving else 0.0)  # fmt: skip
 
     def _leader_step(self, k: int) -> None:
-        """The leader's step ``k``: receive, centroid and reference, send, move, eta, log."""
-        run = self.run
+        """The leader's step ``k``: receive, re-plan if members are gone, centroid and
+        reference, send, move, eta, log."""
+        base = self.base
         measured = self._measure(k)
         self._receive(k)
+        self._replan(k)
+        if not self.leading or self.prun is None:  # (it handed the lead over, or hovers)
+            self._send_state(k, measured)
+            if k < base.k_steps:
+                self._move(k)
+            self._send_log(k, (math.nan,) * 5)
+            return
+        pr = self.prun
         sx, sy, tvx, tvy = self._fuse(k)
+        self._gather()
         cx, cy, sx, sy, eta, self.node = leader_reference(
-            k, self.q, self.v, self.vref, run.delta, run.target[k, 0], run.target[k, 1], sx,
-            sy, tvx, tvy, self.eta, self.node, self.part, run.scene, run.index, run.ctl,
-            run.rule, run.const, self.out, run.route,
+            k, self.qc, self.vc, self.vref, pr.delta, base.target[k, 0], base.target[k, 1], sx,
+            sy, tvx, tvy, self.eta, self.node, self.part, pr.scene, pr.index, pr.ctl,
+            pr.rule, pr.const, self.out, pr.route,
         )  # fmt: skip
+        self.v[self.m] = self.vref
         self.eta = float(eta)
         self._send_state(k, measured)
         estimate = (math.nan,) * 3
-        if run.track is not None:
-            estimate = (
-                float(self.x[0]),
-                float(self.x[1]),
-                float(self.p_cov[0, 0] + self.p_cov[1, 1]),
-            )
+        if base.track is not None:
+            estimate = (float(self.x[0]), float(self.x[1]),
+                        float(self.p_cov[0, 0] + self.p_cov[1, 1]))  # fmt: skip
         extra = (self.eta, float(self.out.distance_to_go[k]), *estimate)
-        if k < run.k_steps:
+        if k < base.k_steps:
             self._move(k)
-            next_value = next_eta(cx, cy, sx, sy, self.eta, self.node, run.scene.rects,
-                                  run.scene.circles, run.index, run.scene, run.rule, run.const,
-                                  run.route, None)  # fmt: skip
-            if run.track is not None:
-                predict_into(self.x, self.p_cov, run.scene.f_mat, run.scene.q_mat, self.f_work)
+            next_value = next_eta(cx, cy, sx, sy, self.eta, self.node, pr.scene.rects,
+                                  pr.scene.circles, pr.index, pr.scene, pr.rule, pr.const,
+                                  pr.route, None)  # fmt: skip
+            if base.track is not None:
+                predict_into(self.x, self.p_cov, base.scene.f_mat, base.scene.q_mat,
+                             self.f_work)  # fmt: skip
         else:
-            uav_clearance(self.m, self.q, self.rep, self.clear, run.scene, run.index, run.ctl)
+            uav_clearance(self.m, self.q, self.rep, self.clear, base.scene, base.index, base.ctl)
         self._send_log(k, extra)
-        if k < run.k_steps:
+        if k < base.k_steps:
             self.eta = float(next_value)
 
     def fly(self) -> None:
         """Fly every step (on the wall clock in the real-time mode), then wait for the
-        recorder's end of the flight (at most the timeout)."""
-        run, realtime = self.run, self.options.mode == "realtime"
+        recorder's end of the flight (at most the timeout). With ``options.kill`` naming
+        this UAV, it kills itself (SIGKILL) at that time instead."""
+        run, realtime = self.base, self.options.mode == "realtime"
         dt = run.const.dt
         start = time.monotonic()
         for k in range(run.k_steps + 1):
+            if k == self.kill_step:
+                os.kill(os.getpid(), signal.SIGKILL)
             if realtime:  # (a step that starts over a step late counts as late)
                 self.member.inbox.check_parent()
                 behind = time.monotonic() - (start + k * dt)
                 self.late += int(behind > dt)
                 time.sleep(max(0.0, -behind))
-            if self.is_leader:
+            if self.leading:
                 self._leader_step(k)
             else:
                 self._follower_step(k)
@@ -689,8 +849,8 @@ def run_uav(run: FlyRun, m: int, options: FlightOptions) -> int:
     member = Member(options.key, member_name(m), options.listen, options.connect, inbox)
     try:
         uav = UavProcess(run, m, options, member)
-        member.subscribe(
-            [state_key(options.key, p) for p in uav.senders] + [done_key(options.key)]
+        member.subscribe(  # (every UAV's: any may become a neighbour or the leader)
+            [state_key(options.key, p) for p in range(run.m_uavs)] + [done_key(options.key)]
         )
         member.announce()
         wait_for_members(member, run)
