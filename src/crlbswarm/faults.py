@@ -257,8 +257,8 @@ def phase_scenario(sc: Scenario, members: np.ndarray, leader: int, edges: np.nda
 
 def _csr(members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The CSR rows of ``edges`` (swarm indices) over ``members``, neighbours sorted (a
-    member may have none)."""
-    local = np.full(int(members.max()) + 1, -1, dtype=np.int64)
+    member may have none, and there may be no member)."""
+    local = np.full(int(members.max(initial=-1)) + 1, -1, dtype=np.int64)
     local[members] = np.arange(members.size)
     e = local[edges] if edges.size else np.empty((0, 2), np.int64)
     rows = np.concatenate([e[:, 0], e[:, 1]])
@@ -389,7 +389,7 @@ def _replan(sc: Scenario, swarm: _Swarm, declared: list[int], k: int, events: li
     swarm.silent -= gone
     parts = _parts(left, swarm.edges)
     parts.sort(key=lambda p: (-len(p), swarm.leader not in p, p[0]))
-    keep = parts[0]
+    keep = parts[0] if parts else []  # (none left: every UAV lost)
     if len(parts) > 1:
         swarm.outcome = "split"
         events.append(f"t = {k * dt:g} s: the graph split into {[p for p in parts]}; "

@@ -690,7 +690,8 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
 def _record_phase(ph: Phase, args: _PhaseArguments, out: RunOutputs, lo: int, hi: int,
                   batch: _Batch, q: np.ndarray, v: np.ndarray) -> None:  # fmt: skip
     """Copy a phase's outputs into the batch (its step ``start`` overwritten), the UAVs
-    no longer flying held where they stopped, and carry its last state into ``q``, ``v``."""
+    no longer flying (and those lost, not yet declared lost) held where they stopped, at
+    velocity 0, and carry its last state into ``q``, ``v``."""
     k0, k1 = ph.start, ph.stop
     steps = slice(k0, k1 + 1)
     batch.vref[lo:hi, steps] = out.v_ref
@@ -700,32 +701,37 @@ def _record_phase(ph: Phase, args: _PhaseArguments, out: RunOutputs, lo: int, hi
     batch.cost[lo:hi, k0:k1] = out.cost
     q[:, ph.members] = out.q[:, args.last]
     v[:, ph.members] = out.v[:, args.last]
-    others = np.setdiff1d(np.arange(q.shape[1]), ph.members)
+    flying = ph.members[ph.frozen == 0]  # (the others hover: velocity 0)
     for row, j in zip(args.rows, args.local, strict=True):
         batch.positions[lo:hi, row] = q
         batch.positions[lo:hi, row][:, ph.members] = out.q[:, j]
         batch.velocities[lo:hi, row] = 0.0
-        batch.velocities[lo:hi, row][:, ph.members] = out.v[:, j]
-        batch.velocities[lo:hi, row][:, others] = 0.0
+        batch.velocities[lo:hi, row][:, flying] = out.v[:, j][:, ph.frozen == 0]
 
 
 def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, batch: _Batch,
            q: np.ndarray) -> None:  # fmt: skip
     """A phase in which the UAVs hover (too few for a formation): every series holds its
-    last value, but the CRLB of the UAVs left, at the (moving) target."""
+    last value, but the CRLB of the UAVs left, at the (moving) target, and their centroid
+    (none left: the CRLB is infinite, the centroid holds its last value)."""
     k0, k1 = ph.start, ph.stop
     steps = slice(k0, k1 + 1)
     target = batch.target[lo:hi, steps]
-    left = q[:, ph.members]
-    batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
-                                    sc.radar_model.take(ph.members))  # fmt: skip
-    centroid = left.mean(axis=1)
-    batch.centroid[lo:hi, steps] = centroid[:, None]
-    offset = centroid[:, None] - target
-    batch.centroid_error[lo:hi, steps] = np.hypot(offset[..., 0], offset[..., 1])
+    held = ["eta", "clearance", "separation", "distance_to_go"]
+    if ph.members.size:
+        left = q[:, ph.members]
+        batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
+                                        sc.radar_model.take(ph.members))  # fmt: skip
+        centroid = left.mean(axis=1)
+        batch.centroid[lo:hi, steps] = centroid[:, None]
+        offset = centroid[:, None] - target
+        batch.centroid_error[lo:hi, steps] = np.hypot(offset[..., 0], offset[..., 1])
+    else:
+        batch.crlb[lo:hi, steps] = np.inf
+        held += ["centroid", "centroid_error"]
     batch.vref[lo:hi, steps] = 0.0
     batch.cost[lo:hi, k0:k1] = 0.0
-    for name in ("eta", "clearance", "separation", "distance_to_go"):
+    for name in held:
         series = getattr(batch, name)
         series[lo:hi, steps] = series[lo:hi, k0 : k0 + 1]
     for row in args.rows:
