@@ -142,16 +142,16 @@ def check_faults(sc: Scenario) -> None:
     seen: set[int] = set()
     for i, loss in enumerate(faults.uav_lost):
         if loss.uav >= n:
-            raise FieldError(f"faults.uav_lost[{i}].uav", f"must be below uavs.count = {n}")
+            raise FieldError(f"faults.uav_lost.{i}.uav", f"must be below uavs.count = {n}")
         if loss.uav in seen:
-            raise FieldError(f"faults.uav_lost[{i}].uav", f"UAV {loss.uav} is lost twice")
+            raise FieldError(f"faults.uav_lost.{i}.uav", f"UAV {loss.uav} is lost twice")
         seen.add(loss.uav)
     edges = {tuple(e) for e in sc.adjacency.edges.tolist()}
     for i, cut in enumerate(faults.link_lost):
         a, b = sorted(cut.uavs)
         if (a, b) not in edges:
             raise FieldError(
-                f"faults.link_lost[{i}].uavs", f"[{a}, {b}] is not a link of the graph"
+                f"faults.link_lost.{i}.uavs", f"[{a}, {b}] is not a link of the graph"
             )
 
 
