@@ -631,21 +631,34 @@ def _new_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarray:
     (B, 2): taken by the rule of ``formation.assignment`` (:func:`slot_offsets`); a regular
     polygon, whose CRLB does not depend on its rotation, is first turned to fit the UAVs
     (the rotation of least squares to their positions,
-    :func:`crlbswarm.geometry.fitted_turn`)."""
+    :func:`crlbswarm.geometry.fitted_turn`). With the optimal assignment, the leader of a
+    regular polygon takes the vertex nearest to it (the vertices are alike), before and
+    after the turn, and the followers the others."""
     design = np.asarray(sc.target, dtype=float)
     centre = design + sc.formation_design.centre_offset
+    leader = sc.uavs.leader
     out = np.empty_like(q)
     for i in range(q.shape[0]):
         p = q[i] - (target[i] - design)
-        out[i] = offsets = slot_offsets(sc, p, centre)
-        if sc.formation_design.regular:
-            turn = fitted_turn(offsets, p - centre)
-            if sc.formation.assignment == "optimal":
-                slots = (sc.slots - centre) @ turn.T
-                out[i] = slots[assign_slots(p, centre + slots, sc.uavs.leader)]
-            else:
-                out[i] = offsets @ turn.T
+        if not sc.formation_design.regular:
+            out[i] = slot_offsets(sc, p, centre)
+        elif sc.formation.assignment == "optimal":
+            slots = _nearest_to_leader(sc.slots - centre, p[leader] - centre, leader)
+            offsets = slots[assign_slots(p, centre + slots, leader)]
+            slots = _nearest_to_leader(slots @ fitted_turn(offsets, p - centre).T,
+                                       p[leader] - centre, leader)  # fmt: skip
+            out[i] = slots[assign_slots(p, centre + slots, leader)]
+        else:
+            offsets = slot_offsets(sc, p, centre)
+            out[i] = offsets @ fitted_turn(offsets, p - centre).T
     return out
+
+
+def _nearest_to_leader(slots: np.ndarray, at: np.ndarray, leader: int) -> np.ndarray:
+    """The vertices ``slots`` (M, 2) of a regular polygon relabelled in turn so that the
+    leader's, ``slots[leader]``, is the one nearest to ``at`` (the leader)."""
+    nearest = int(np.argmin(np.hypot(*(slots - at).T)))
+    return np.roll(slots, leader - nearest, axis=0)
 
 
 def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: int,
