@@ -3,10 +3,11 @@
 Run from the repository root::
 
     python benchmarks/faults_acceptance.py [--seeds 100] [--duration 150] [--time 100]
-                                           [--timeout 1.0]
+                                           [--timeout 1.0] [--scenario paper]
 
 Runs the built-in ``paper`` scenario (6 UAVs through the gap to hover over (80, 90), the
-paper's laws and gains, ``--duration`` seconds: the paper's 150 s) for seeds
+paper's laws and gains, ``--duration`` seconds: the paper's 150 s; ``--scenario
+paper_safe``: the same mission with the safety layers) for seeds
 ``0 .. --seeds - 1`` in three cases: no fault (the reference), UAV 2 (a follower) lost at
 ``--time`` (``[faults] uav_lost = [{uav = 2, time = 100.0}]``), and the leader lost then
 (``[faults] leader_lost = 100.0``); the swarm declares the UAV lost after ``--timeout``
@@ -39,9 +40,10 @@ import crlbswarm as cs
 from crlbswarm.results import CRLB_TOL, OUTCOMES
 
 
-def scenario(faults: dict | None, duration: float) -> cs.Scenario:
-    """The paper scenario, ``duration`` seconds long, with the ``[faults]`` table ``faults``."""
-    data = cs.load_scenario("paper").model_dump(exclude_none=True)
+def scenario(name: str, faults: dict | None, duration: float) -> cs.Scenario:
+    """The scenario ``name``, ``duration`` seconds long, with the ``[faults]`` table
+    ``faults``."""
+    data = cs.load_scenario(name).model_dump(exclude_none=True)
     data["time"]["duration"] = duration
     if faults is not None:
         data["faults"] = faults
@@ -72,13 +74,14 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=150.0)
     parser.add_argument("--time", type=float, default=100.0, help="time of the loss, s")
     parser.add_argument("--timeout", type=float, default=1.0, help="faults.timeout, s")
+    parser.add_argument("--scenario", default="paper", help="a built-in scenario")
     args = parser.parse_args()
     cases = {
         "no fault": None,
         "follower (UAV 2) lost": {"uav_lost": [{"uav": 2, "time": args.time}]},
         "leader lost": {"leader_lost": args.time},
     }
-    print(f"paper scenario, {args.duration:g} s, seeds 0..{args.seeds - 1}, loss at "
+    print(f"{args.scenario} scenario, {args.duration:g} s, seeds 0..{args.seeds - 1}, loss at "
           f"t = {args.time:g} s, timeout {args.timeout:g} s")  # fmt: skip
     header = ("| case | within 1 % | median ratio | max ratio | converged | median conv. s "
               "| outcomes | sep after, m | to lost, m |")  # fmt: skip
@@ -88,7 +91,7 @@ def main() -> None:
     for name, faults in cases.items():
         if faults is not None:
             faults = {**faults, "timeout": args.timeout}
-        sc = scenario(faults, args.duration)
+        sc = scenario(args.scenario, faults, args.duration)
         result = cs.simulate(sc, seeds=range(args.seeds))
         m = result.metrics
         ratio = m["final_crlb_ratio"]

@@ -17,9 +17,9 @@ Loss
     longer heard by either end, from the step it is lost.
 Detection
     Nobody is told. The swarm declares a UAV lost after ``timeout`` seconds without a
-    message from it (:attr:`FaultsConfig.timeout`; with perfect links a live UAV is never
-    silent, so nothing else is ever declared lost). Until then the formation keeps its
-    slots, its leader and its graph, minus what is silent.
+    message from it (the field of :class:`FaultsConfig`; with perfect links a live UAV is
+    never silent, so nothing else is ever declared lost). Until then the formation keeps
+    its slots, its leader and its graph, minus what is silent.
 Re-planning (at the step a loss is declared)
     The UAVs left, and the graph among them (the configured graph without the lost UAVs
     and lost links), form the new swarm. If that graph has several parts, the part with
@@ -29,7 +29,9 @@ Re-planning (at the step a loss is declared)
     Otherwise the new swarm flies the optimal formation for its own UAVs (the scenario's
     design over the same target, for these UAVs and their radars: :func:`phase_scenario`),
     its slots taken by the rule of ``formation.assignment`` from the positions where the
-    re-planning finds the UAVs; the CRLB is then measured against the new bound.
+    re-planning finds the UAVs (a regular polygon first turned to fit them, its leader,
+    with the optimal assignment, on the vertex nearest to it); the CRLB is then measured
+    against the new bound.
 Leader election
     If the leader is among the UAVs that go on, it stays leader; otherwise the UAV with the
     lowest index among them leads. Every UAV can apply the rule alone, with no vote.
