@@ -510,7 +510,6 @@ def test_random_faults_give_a_consistent_plan_and_run(losses, leader, cuts, time
         if line.endswith(" lost") and ": UAV " in line:
             t, uav = line[4:].split(" s: UAV ")
             lost_at[int(uav[: -len(" lost")])] = round(float(t) * 10)
-    assert set(lost_at) >= {m for m, k in losses if k < 50 and m in lost_at}
     for m, k in losses:  # a UAV lost while flying is in the events at its step
         if k < 50 and m in lost_at:
             assert lost_at[m] <= k
