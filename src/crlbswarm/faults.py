@@ -17,9 +17,9 @@ Loss
     longer heard by either end, from the step it is lost.
 Detection
     Nobody is told. The swarm declares a UAV lost after ``timeout`` seconds without a
-    message from it (:attr:`FaultsConfig.timeout`; with perfect links a live UAV is never
-    silent, so nothing else is ever declared lost). Until then the formation keeps its
-    slots, its leader and its graph, minus what is silent.
+    message from it (the field of :class:`FaultsConfig`; with perfect links a live UAV is
+    never silent, so nothing else is ever declared lost). Until then the formation keeps
+    its slots, its leader and its graph, minus what is silent.
 Re-planning (at the step a loss is declared)
     The UAVs left, and the graph among them (the configured graph without the lost UAVs
     and lost links), form the new swarm. If that graph has several parts, the part with
@@ -29,7 +29,9 @@ Re-planning (at the step a loss is declared)
     Otherwise the new swarm flies the optimal formation for its own UAVs (the scenario's
     design over the same target, for these UAVs and their radars: :func:`phase_scenario`),
     its slots taken by the rule of ``formation.assignment`` from the positions where the
-    re-planning finds the UAVs; the CRLB is then measured against the new bound.
+    re-planning finds the UAVs (a regular polygon first turned to fit them, its leader,
+    with the optimal assignment, on the vertex nearest to it); the CRLB is then measured
+    against the new bound.
 Leader election
     If the leader is among the UAVs that go on, it stays leader; otherwise the UAV with the
     lowest index among them leads. Every UAV can apply the rule alone, with no vote.
@@ -144,16 +146,16 @@ def check_faults(sc: Scenario) -> None:
     seen: set[int] = set()
     for i, loss in enumerate(faults.uav_lost):
         if loss.uav >= n:
-            raise FieldError(f"faults.uav_lost[{i}].uav", f"must be below uavs.count = {n}")
+            raise FieldError(f"faults.uav_lost.{i}.uav", f"must be below uavs.count = {n}")
         if loss.uav in seen:
-            raise FieldError(f"faults.uav_lost[{i}].uav", f"UAV {loss.uav} is lost twice")
+            raise FieldError(f"faults.uav_lost.{i}.uav", f"UAV {loss.uav} is lost twice")
         seen.add(loss.uav)
     edges = {tuple(e) for e in sc.adjacency.edges.tolist()}
     for i, cut in enumerate(faults.link_lost):
         a, b = sorted(cut.uavs)
         if (a, b) not in edges:
             raise FieldError(
-                f"faults.link_lost[{i}].uavs", f"[{a}, {b}] is not a link of the graph"
+                f"faults.link_lost.{i}.uavs", f"[{a}, {b}] is not a link of the graph"
             )
 
 
@@ -259,8 +261,8 @@ def phase_scenario(sc: Scenario, members: np.ndarray, leader: int, edges: np.nda
 
 def _csr(members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The CSR rows of ``edges`` (swarm indices) over ``members``, neighbours sorted (a
-    member may have none)."""
-    local = np.full(int(members.max()) + 1, -1, dtype=np.int64)
+    member may have none, and there may be no member)."""
+    local = np.full(int(members.max(initial=-1)) + 1, -1, dtype=np.int64)
     local[members] = np.arange(members.size)
     e = local[edges] if edges.size else np.empty((0, 2), np.int64)
     rows = np.concatenate([e[:, 0], e[:, 1]])

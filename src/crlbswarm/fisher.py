@@ -129,7 +129,11 @@ def fim_entries_at(q, sx, sy, altitude, snr):
     ``altitude`` about the target (sx, sy), with each UAV's :math:`A_m` in ``snr`` (M,):
     :math:`\mathbf J_s = \sum_m (A_m/d_m^4 + 8/d_m^2)(\mathbf s - \mathbf q_m)
     (\mathbf s - \mathbf q_m)^\top / d_m^2`. Compiled kernel, no checks: the one
-    writing of the law, called by :func:`fisher_information` and the mission kernel."""
+    writing of the law, called by :func:`fisher_information` and the mission kernel.
+
+    :math:`A_m = 0` marks a UAV that does not sense (a lost UAV, :mod:`crlbswarm.faults`;
+    a radar's :math:`A_m` is always positive): it adds nothing, not even the term
+    :math:`8/d_m^2` of the variance, which does not depend on :math:`A_m`."""
     h2 = altitude * altitude
     jxx = 0.0
     jyy = 0.0
@@ -139,8 +143,8 @@ def fim_entries_at(q, sx, sy, altitude, snr):
         dy = sy - q[m, 1]
         d2 = dx * dx + dy * dy + h2
         # [J_d]_mm / d_m^2 = (A/d^4 + 8/d^2) / d^2: the weight of the outer product of the
-        # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m).
-        w = (snr[m] / d2 + 8.0) / d2 / d2
+        # horizontal offsets (eq. (8) with Q_m = (s - q_m)^T / d_m); none when A = 0.
+        w = (snr[m] / d2 + (8.0 if snr[m] > 0.0 else 0.0)) / d2 / d2
         wx = w * dx
         jxx += wx * dx
         jxy += wx * dy

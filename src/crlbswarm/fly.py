@@ -292,7 +292,20 @@ class Recorder:
         early (:func:`cut_scenario`), with the UAVs the swarm lost as a ``[faults]`` table
         (each lost one step before the step the swarm re-planned at, with a timeout of one
         step: :func:`crlbswarm.faults.plan_faults` then re-plans at the same steps, for
-        the same UAVs), when the scenario's layers allow one."""
+        the same UAVs), when the scenario's layers allow one.
+
+        Parameters
+        ----------
+        steps : int
+            Steps recorded.
+        why : str
+            Why the flight ended, if it ended early.
+
+        Returns
+        -------
+        Scenario
+            The scenario.
+        """
         run = self.run
         sc = run.scenario
         if self.declared and sc.links is None and run.track is None:

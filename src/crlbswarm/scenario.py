@@ -648,8 +648,8 @@ class Scenario(ConfigModel):
 
     @cached_property
     def fault_plan(self) -> FaultPlan | None:
-        """With a ``[faults]`` table: the mission's phases (:func:`plan_faults`, made once);
-        None without."""
+        """With a ``[faults]`` table: the mission's phases
+        (:func:`~crlbswarm.faults.plan_faults`, made once); None without."""
         return None if self.faults is None else plan_faults(self)
 
     @cached_property

@@ -616,8 +616,10 @@ def phase_scene(scene: SceneArrays, indptr: np.ndarray, indices: np.ndarray, snr
     ----------
     scene : SceneArrays
         The scenario's arrays (:func:`kernel_arguments`).
-    indptr, indices : ndarray of int64
-        The graph (CSR).
+    indptr : ndarray of int64
+        The graph's CSR row pointers.
+    indices : ndarray of int64
+        Its neighbour indices.
     snr : ndarray, shape (M,)
         Each UAV's weight in the FIM (:attr:`SceneArrays.snr`; 0 leaves it out).
     keep : ndarray of int64
@@ -665,8 +667,9 @@ def replanned_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarr
     The UAVs take the slots of ``sc``'s formation by the rule of ``formation.assignment``
     (:func:`slot_offsets`) from the positions where the re-planning finds them; a regular
     polygon, whose CRLB does not depend on its rotation, is first turned to fit them (the
-    rotation of least squares, :func:`crlbswarm.geometry.fitted_turn`). The simulator and
-    the leader of ``crlbswarm fly`` re-plan with it.
+    rotation of least squares, :func:`crlbswarm.geometry.fitted_turn`); with the optimal
+    assignment its leader takes the vertex nearest to it, before and after the turn. The
+    simulator and the leader of ``crlbswarm fly`` re-plan with it.
 
     Parameters
     ----------
@@ -685,14 +688,26 @@ def replanned_slots(sc: Scenario, q: np.ndarray, target: np.ndarray) -> np.ndarr
     design = np.asarray(sc.target, dtype=float)
     centre = design + sc.formation_design.centre_offset
     p = q - (np.asarray(target, dtype=float) - design)
-    offsets = slot_offsets(sc, p, centre)
     if not sc.formation_design.regular:
-        return offsets
-    turn = fitted_turn(offsets, p - centre)
+        return slot_offsets(sc, p, centre)
     if sc.formation.assignment != "optimal":
-        return offsets @ turn.T
-    slots = (sc.slots - centre) @ turn.T
-    return slots[assign_slots(p, centre + slots, sc.uavs.leader)]
+        offsets = slot_offsets(sc, p, centre)
+        return offsets @ fitted_turn(offsets, p - centre).T
+    # (the optimal assignment: the leader takes the vertex nearest to it, before and after
+    # the turn (the vertices are alike), the followers the others)
+    leader = sc.uavs.leader
+    slots = _nearest_to_leader(sc.slots - centre, p[leader] - centre, leader)
+    offsets = slots[assign_slots(p, centre + slots, leader)]
+    slots = _nearest_to_leader(slots @ fitted_turn(offsets, p - centre).T, p[leader] - centre,
+                               leader)  # fmt: skip
+    return slots[assign_slots(p, centre + slots, leader)]
+
+
+def _nearest_to_leader(slots: np.ndarray, at: np.ndarray, leader: int) -> np.ndarray:
+    """The vertices ``slots`` (M, 2) of a regular polygon relabelled in turn so that the
+    leader's, ``slots[leader]``, is the one nearest to ``at`` (the leader)."""
+    nearest = int(np.argmin(np.hypot(*(slots - at).T)))
+    return np.roll(slots, leader - nearest, axis=0)
 
 
 def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: int,
@@ -735,7 +750,8 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
 def _record_phase(ph: Phase, args: _PhaseArguments, out: RunOutputs, lo: int, hi: int,
                   batch: _Batch, q: np.ndarray, v: np.ndarray) -> None:  # fmt: skip
     """Copy a phase's outputs into the batch (its step ``start`` overwritten), the UAVs
-    no longer flying held where they stopped, and carry its last state into ``q``, ``v``."""
+    no longer flying (and those lost, not yet declared lost) held where they stopped, at
+    velocity 0, and carry its last state into ``q``, ``v``."""
     k0, k1 = ph.start, ph.stop
     steps = slice(k0, k1 + 1)
     batch.vref[lo:hi, steps] = out.v_ref
@@ -745,32 +761,37 @@ def _record_phase(ph: Phase, args: _PhaseArguments, out: RunOutputs, lo: int, hi
     batch.cost[lo:hi, k0:k1] = out.cost
     q[:, ph.members] = out.q[:, args.last]
     v[:, ph.members] = out.v[:, args.last]
-    others = np.setdiff1d(np.arange(q.shape[1]), ph.members)
+    flying = ph.members[ph.frozen == 0]  # (the others hover: velocity 0)
     for row, j in zip(args.rows, args.local, strict=True):
         batch.positions[lo:hi, row] = q
         batch.positions[lo:hi, row][:, ph.members] = out.q[:, j]
         batch.velocities[lo:hi, row] = 0.0
-        batch.velocities[lo:hi, row][:, ph.members] = out.v[:, j]
-        batch.velocities[lo:hi, row][:, others] = 0.0
+        batch.velocities[lo:hi, row][:, flying] = out.v[:, j][:, ph.frozen == 0]
 
 
 def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, batch: _Batch,
            q: np.ndarray) -> None:  # fmt: skip
     """A phase in which the UAVs hover (too few for a formation): every series holds its
-    last value, but the CRLB of the UAVs left, at the (moving) target."""
+    last value, but the CRLB of the UAVs left, at the (moving) target, and their centroid
+    (none left: the CRLB is infinite, the centroid holds its last value)."""
     k0, k1 = ph.start, ph.stop
     steps = slice(k0, k1 + 1)
     target = batch.target[lo:hi, steps]
-    left = q[:, ph.members]
-    batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
-                                    sc.radar_model.take(ph.members))  # fmt: skip
-    centroid = left.mean(axis=1)
-    batch.centroid[lo:hi, steps] = centroid[:, None]
-    offset = centroid[:, None] - target
-    batch.centroid_error[lo:hi, steps] = np.hypot(offset[..., 0], offset[..., 1])
+    held = ["eta", "clearance", "separation", "distance_to_go"]
+    if ph.members.size:
+        left = q[:, ph.members]
+        batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
+                                        sc.radar_model.take(ph.members))  # fmt: skip
+        centroid = left.mean(axis=1)
+        batch.centroid[lo:hi, steps] = centroid[:, None]
+        offset = centroid[:, None] - target
+        batch.centroid_error[lo:hi, steps] = np.hypot(offset[..., 0], offset[..., 1])
+    else:
+        batch.crlb[lo:hi, steps] = np.inf
+        held += ["centroid", "centroid_error"]
     batch.vref[lo:hi, steps] = 0.0
     batch.cost[lo:hi, k0:k1] = 0.0
-    for name in ("eta", "clearance", "separation", "distance_to_go"):
+    for name in held:
         series = getattr(batch, name)
         series[lo:hi, steps] = series[lo:hi, k0 : k0 + 1]
     for row in args.rows:
