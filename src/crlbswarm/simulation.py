@@ -621,7 +621,8 @@ def phase_scene(scene: SceneArrays, indptr: np.ndarray, indices: np.ndarray, snr
     indices : ndarray of int64
         Its neighbour indices.
     snr : ndarray, shape (M,)
-        Each UAV's weight in the FIM (:attr:`SceneArrays.snr`; 0 leaves it out).
+        Each UAV's weight in the FIM (``snr`` of
+        :class:`crlbswarm.mission_kernel.SceneArrays`; 0 leaves it out).
     keep : ndarray of int64
         Each step's kept row (-1: not kept).
 
