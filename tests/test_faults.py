@@ -335,6 +335,70 @@ def test_a_lost_link_leaves_the_members_and_slots():
     assert not np.array_equal(a.positions[:, -1], b.positions[:, -1])  # (phase 1's draws)
 
 
+# -- faults with communication links ----------------------------------------------------------
+MIXED = {"uav_lost": [{"uav": 4, "time": 5.0}], "leader_lost": 12.0,
+         "link_lost": [{"uavs": [1, 2], "time": 3.0}], "timeout": 0.5}  # fmt: skip
+LINK_ARRAYS = tuple(f"link_{name}" for name in ("sent", "delivered", "age", "age_max",
+                                                   "connected"))  # fmt: skip
+
+
+def test_perfect_links_with_faults_are_the_faults_without_links():
+    """A ``[links]`` table of perfect links (every message of the step, instantly) gives
+    the same bits as no table, with a follower, the leader and a link lost: the silent UAV
+    and the lost link are out of the link layer's graph as they are out of the laws'."""
+    a = cs.simulate(_near(MIXED, duration=20.0), seeds=range(2))
+    b = cs.simulate(_near(MIXED, duration=20.0, links={}), seeds=range(2))
+    _same(a, b)
+    assert np.array_equal(a.bound_steps, b.bound_steps)
+    assert np.all(b.link_delivered == b.link_sent)
+
+
+def test_lossy_links_with_faults_re_form_and_count_the_messages():
+    """20 % loss and 2 steps of delay, UAV 4 lost at 5 s: the link series cover every
+    step; while UAV 4 is silent (5 s to its detection) and after, its two ring links carry
+    nothing, so fewer messages are sent than before; the layer restarts at each phase; a
+    batch is the single runs, bit for bit; the five left reach their bound."""
+    sc = _near(_lost(4, 5.0, timeout=0.5), duration=60.0, links={"loss": 0.2, "delay": 2})
+    batch = cs.simulate(sc, seeds=range(3))
+    for name in LINK_ARRAYS:
+        assert getattr(batch, name).shape == (3, 601)
+    k = 50
+    sent = batch.link_sent
+    assert np.all(sent[:, 5 : k - 1].mean(axis=1) > sent[:, k + 1 :].mean(axis=1))
+    # (the link layer restarts at each phase: the loss at step 50, its detection at 55;
+    # for the 2 steps of delay no message has arrived, as at the start)
+    restarts = [0, 1, 50, 51, 55, 56]
+    for age in batch.link_age:
+        assert np.flatnonzero(~np.isfinite(age)).tolist() == restarts
+    delivered = batch.link_delivered.sum(axis=1) / sent.sum(axis=1)
+    np.testing.assert_allclose(delivered, 0.8, atol=0.03)
+    single = cs.simulate(sc, seed=2)
+    for name in (*ARRAYS, *LINK_ARRAYS):
+        assert np.array_equal(getattr(batch, name)[2], getattr(single, name)[0],
+                              equal_nan=True), name  # fmt: skip
+    np.testing.assert_allclose(batch.crlb[:, -1] / batch.bound_steps[-1], 1.0, atol=0.01)
+
+
+def test_links_between_any_two_in_range_leave_out_the_silent_uav():
+    """With ``links.use_graph = false`` (every pair in range may talk) the lost UAV is
+    silent too: after its loss it sends nothing, so the messages sent per step fall from
+    6 x 5 to 5 x 4 (every pair in range, both ways; during the silence one more, the
+    leader's broadcast of eta that still reaches the silent UAV), the lost link's pair stays
+    silent (5 x 4 - 2), and the swarm does not split: any two UAVs are linked."""
+    faults = {"uav_lost": [{"uav": 4, "time": 5.0}], "link_lost": [{"uavs": [1, 2],
+              "time": 8.0}], "timeout": 0.5}  # fmt: skip
+    sc = _near(faults, duration=12.0, links={"range": 1e4, "use_graph": False},
+               control={"epsilon": 0.1, "gamma": 0.1})  # fmt: skip
+    r = cs.simulate(sc, seed=0)
+    sent = r.link_sent[0]
+    assert np.all(sent[:50] == 30)
+    assert np.all(sent[50:55] == 21)
+    assert np.all(sent[55:80] == 20)
+    assert np.all(sent[80:] == 18)
+    assert r.scenario.fault_plan.phases[-1].members.tolist() == [0, 1, 2, 3, 5]
+    assert r.metrics["outcome"][0] != "split"
+
+
 # -- runs, batches, outputs ------------------------------------------------------------------
 def test_a_run_with_faults_is_the_same_bits_in_any_batch():
     sc = _near({"uav_lost": [{"uav": 4, "time": 5.0}], "leader_lost": 12.0}, duration=20.0)
@@ -413,7 +477,6 @@ def test_campaigns_sweep_faults_fields():
          "faults.uav_lost.1.uav", "UAV 1 is lost twice"),
         ({"link_lost": [{"uavs": [0, 2], "time": 1.0}]}, {}, "faults.link_lost.0.uavs",
          "[0, 2] is not a link of the graph"),
-        ({}, {"links": {"loss": 0.1}}, "faults", "not supported yet with a [links] table"),
         ({}, {"estimation": {"enabled": True}}, "faults", "not supported yet with sensing"),
         ({}, {"extra_targets": [[-40.0, 60.0]]}, "faults", "not supported yet with several"),
         (_lost(1, -1.0), {}, "faults.uav_lost.0.time", "greater than or equal to 0"),

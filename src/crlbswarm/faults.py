@@ -70,6 +70,7 @@ __all__ = [
     "decide",
     "phase_scenario",
     "plan_faults",
+    "swarm_links",
 ]
 
 #: Most events in a ``[faults]`` table (UAVs and links lost).
@@ -118,6 +119,27 @@ class FaultsConfig(ConfigModel):
     )
 
 
+def swarm_links(sc: Scenario) -> set[tuple[int, int]]:
+    """The links of the swarm's communication graph, ``(a, b)`` with ``a < b``: those of the
+    configured graph, or, with ``links.use_graph = false``, every pair (any two UAVs in
+    range may talk). Losses, splits and re-plannings are decided on them.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+
+    Returns
+    -------
+    set of tuple of int
+        The links.
+    """
+    if sc.links is not None and not sc.links.use_graph:
+        n = sc.uavs.count
+        return {(a, b) for a in range(n) for b in range(a + 1, n)}
+    return {(int(a), int(b)) for a, b in sc.adjacency.edges}
+
+
 def check_faults(sc: Scenario) -> None:
     """The checks of a ``[faults]`` table against its scenario (called by its validation).
 
@@ -136,7 +158,6 @@ def check_faults(sc: Scenario) -> None:
     assert faults is not None
     unsupported = (
         ("extra_targets", bool(sc.extra_targets), "several targets"),
-        ("links", sc.links is not None, "a [links] table (faults assume perfect links)"),
         ("estimation.enabled", sc.estimation.enabled, "sensing in the loop"),
     )
     for name, on, what in unsupported:
@@ -150,7 +171,7 @@ def check_faults(sc: Scenario) -> None:
         if loss.uav in seen:
             raise FieldError(f"faults.uav_lost.{i}.uav", f"UAV {loss.uav} is lost twice")
         seen.add(loss.uav)
-    edges = {tuple(e) for e in sc.adjacency.edges.tolist()}
+    edges = swarm_links(sc)
     for i, cut in enumerate(faults.link_lost):
         a, b = sorted(cut.uavs)
         if (a, b) not in edges:
@@ -259,9 +280,22 @@ def phase_scenario(sc: Scenario, members: np.ndarray, leader: int, edges: np.nda
         ) from None
 
 
-def _csr(members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _phase_graph(members: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The CSR rows of ``edges`` (swarm indices) over ``members``, neighbours sorted (a
-    member may have none, and there may be no member)."""
+    member may have none, and there may be no member: a phase's graph, :class:`Phase`).
+
+    Parameters
+    ----------
+    members : ndarray of int64
+        The UAVs (swarm indices, increasing): row ``i`` is ``members[i]``'s.
+    edges : ndarray of int64, shape (E, 2)
+        The links (swarm indices).
+
+    Returns
+    -------
+    indptr, indices : ndarray of int64
+        CSR row pointers and neighbour rows.
+    """
     local = np.full(int(members.max(initial=-1)) + 1, -1, dtype=np.int64)
     local[members] = np.arange(members.size)
     e = local[edges] if edges.size else np.empty((0, 2), np.int64)
@@ -353,7 +387,7 @@ def plan_faults(sc: Scenario) -> FaultPlan:
     losses, cuts, delay = _events(sc)
     dt, k_steps = sc.time.step, sc.time.steps
     swarm = _Swarm(list(range(sc.uavs.count)), sc.uavs.leader,
-                   {(int(a), int(b)) for a, b in sc.adjacency.edges}, sc,
+                   swarm_links(sc), sc,
                    float(sc.formation_design.bound))  # fmt: skip
     detect: dict[int, list[int]] = {}
     steps = sorted({0, k_steps, *losses, *cuts})
@@ -481,6 +515,6 @@ def _phase(swarm: _Swarm, start: int, stop: int, replan: bool) -> Phase:
         if e not in swarm.cut and e[0] in swarm.members and e[1] in swarm.members
         and e[0] not in swarm.silent and e[1] not in swarm.silent
     ]  # fmt: skip
-    indptr, indices = _csr(members, np.array(sorted(live), dtype=np.int64).reshape(-1, 2))
+    indptr, indices = _phase_graph(members, np.array(sorted(live), dtype=np.int64).reshape(-1, 2))
     return Phase(start, stop, members, frozen, indptr, indices, swarm.scenario, replan,
                  swarm.bound)  # fmt: skip

@@ -110,6 +110,29 @@ class Adjacency:
         object.__setattr__(self, "indices", idx)
 
     @classmethod
+    def of_phase(cls, indptr: np.ndarray, indices: np.ndarray) -> Adjacency:
+        """CSR arrays taken as they are, unchecked: the graph of a phase of a mission with
+        faults (:mod:`crlbswarm.faults`), where a UAV lost and not yet declared lost has no
+        neighbour left.
+
+        Parameters
+        ----------
+        indptr : ndarray of int64, shape (M + 1,)
+            CSR row pointers.
+        indices : ndarray of int64
+            Neighbour indices, sorted within each row, symmetric.
+
+        Returns
+        -------
+        Adjacency
+            The adjacency.
+        """
+        adjacency = object.__new__(cls)
+        object.__setattr__(adjacency, "indptr", np.asarray(indptr, dtype=np.int64))
+        object.__setattr__(adjacency, "indices", np.asarray(indices, dtype=np.int64))
+        return adjacency
+
+    @classmethod
     def from_graph(cls, graph: nx.Graph) -> Adjacency:
         """Build from a networkx graph on the nodes ``0 .. M-1``.
 

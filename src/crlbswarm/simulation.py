@@ -32,6 +32,7 @@ from .errors import FieldError, SimulationDivergedError
 from .faults import FaultPlan, Phase
 from .fisher import crlb
 from .geometry import fitted_turn
+from .graphs import Adjacency
 from .links import LINK_SERIES, LinkModel, link_model, link_state_bytes
 from .mission_kernel import (
     DIVERGENCE_LIMIT,
@@ -588,6 +589,7 @@ class _PhaseArguments(NamedTuple):
     local: np.ndarray
     last: int
     n_rows: int
+    links: LinkModel | None = None
 
 
 def _phase_arguments(sc: Scenario, ph: Phase, kept: np.ndarray) -> _PhaseArguments:
@@ -604,7 +606,19 @@ def _phase_arguments(sc: Scenario, ph: Phase, kept: np.ndarray) -> _PhaseArgumen
     scene = phase_scene(scene, ph.indptr, ph.indices, np.where(ph.frozen != 0, 0.0, scene.snr),
                         keep)  # fmt: skip
     return _PhaseArguments((scene, index, ctl, rule, const), in_phase, np.arange(steps.size),
-                           last, max(last + 1, steps.size))  # fmt: skip
+                           last, max(last + 1, steps.size), _phase_links(ph))  # fmt: skip
+
+
+def _phase_links(ph: Phase) -> LinkModel | None:
+    """The link model of a phase (None without a ``[links]`` table): the candidate links of
+    its graph (:func:`crlbswarm.faults.swarm_links`, without the links of the UAVs silent
+    and the links lost)."""
+    sc = ph.scenario
+    if sc is None or sc.links is None:
+        return None
+    adjacency = Adjacency.of_phase(ph.indptr, ph.indices)
+    table = sc.links.model_copy(update={"use_graph": True})
+    return link_model(table, adjacency, sc.uavs.leader, sc.time.step)
 
 
 def phase_scene(scene: SceneArrays, indptr: np.ndarray, indices: np.ndarray, snr: np.ndarray,
@@ -739,8 +753,14 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
     )  # fmt: skip
     status = buf.status[:n]
     frozen = ph.frozen if ph.frozen.any() else None
+    link_io = None
+    if args.links is not None:
+        keys = np.array([stream_key(int(s), LINKS + p * PHASE_STREAMS) for s in seeds])
+        link_io = (keys.astype(np.int64), np.empty((n, ks + 1, len(LINK_SERIES))))
     run_batch(tuple(out), tuple(inp), status, *args.kernel, *layer_markers(ph.scenario),
-              _crowd(ph.scenario), None, None, frozen)  # fmt: skip
+              _crowd(ph.scenario), args.links, link_io, frozen)  # fmt: skip
+    if link_io is not None and batch.links is not None:
+        batch.links[lo : lo + n, k0 : k1 + 1] = link_io[1]
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(ph.scenario, lo + int(bad[0]), int(seeds[bad[0]]),
@@ -792,6 +812,9 @@ def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, bat
         held += ["centroid", "centroid_error"]
     batch.vref[lo:hi, steps] = 0.0
     batch.cost[lo:hi, k0:k1] = 0.0
+    if batch.links is not None:  # (no formation: no messages counted, no graph)
+        none = {"sent": 0.0, "delivered": 0.0, "age": np.nan, "age_max": np.nan, "connected": 0.0}
+        batch.links[lo:hi, k0 + 1 : k1 + 1] = [none[name] for name in LINK_SERIES]
     for name in held:
         series = getattr(batch, name)
         series[lo:hi, steps] = series[lo:hi, k0 : k0 + 1]
