@@ -215,6 +215,33 @@ def free_endpoints(n: int) -> list[str]:
     return [f"tcp/127.0.0.1:{p}" for p in ports]
 
 
+def test_the_uavs_lost_of_a_faults_table_are_flown(flight):
+    """A ``[faults]`` table flown (5 UAVs, 30 s): UAV 3 lost at 10 s, then the leader at
+    20 s. Their processes kill themselves then; the others re-form, then, two left in one
+    part and one in the other, hover (outcome ``too_few``), without waiting a timeout for
+    anybody (no late step); the saved scenario tells both losses."""
+    key, tmp = flight
+    data = copy.deepcopy(short("paper", 30.0, count=5).model_dump())
+    data["faults"] = {"uav_lost": [{"uav": 3, "time": 10.0}], "leader_lost": 20.0}
+    path = tmp / "faults.toml"
+    path.write_text(Scenario.from_dict(data).to_toml())
+    proc = launch(key, path, tmp / "out", "--seed", "1")
+    status, out, _ = finish(proc, 90.0)  # (a hang guard)
+    assert status == 1
+    assert "uav/0 -9" in out
+    assert "uav/3 -9" in out
+    assert members(key) == []
+    record = json.loads((tmp / "out" / "fly.json").read_text())
+    assert record["complete"]
+    assert record["late_steps"] == [0] * 5
+    result = load_results(tmp / "out")
+    assert sorted(u.uav for u in result.scenario.faults.uav_lost) == [0, 3]
+    assert result.metrics["outcome"][0] in ("too_few", "collision")
+    assert result.scenario.fault_plan.outcome == "too_few"
+    held = result.positions[0, 210:]
+    assert np.all(held == held[0])
+
+
 def test_members_started_by_hand_find_each_other(flight):
     """The recorder and 3 UAVs started as separate commands (``--recorder``, ``--uav I``),
     each on its own endpoint and connecting only to the recorder's (Zenoh's gossip
@@ -309,6 +336,10 @@ def fly_error(capsys, *argv: str) -> str:
         (["--connect", "nowhere"], "--connect"),
         (["--listen", "tcp/127.0.0.1:1"], "--listen"),
         (["--uav", "6"], "--uav"),
+        (["--kill", "6@10"], "kill: UAV 6 does not exist"),
+        (["--kill", "2@200"], "kill: time 200 s is outside the mission"),
+        (["--kill", "2"], "--kill"),
+        (["--kill", "2@nan"], "--kill"),
     ],
 )  # fmt: skip
 def test_errors_are_one_line_before_anything_starts(capsys, tmp_path, argv, words):
@@ -338,6 +369,23 @@ def test_several_targets_and_a_missing_scenario_are_refused(capsys, tmp_path):
     path.write_text(Scenario.from_dict(data).to_toml())
     assert "extra_targets" in fly_error(capsys, str(path), "--out", str(tmp_path / "o"))
     assert "nowhere.toml" in fly_error(capsys, "nowhere.toml", "--out", str(tmp_path / "o"))
+
+
+@pytest.mark.parametrize(
+    ("table", "words"),
+    [
+        ({"links": {"loss": 0.1}}, "links: crlbswarm fly does not fly a [links] table"),
+        ({"faults": {"link_lost": [{"uavs": [0, 1], "time": 5.0}]}},
+         "faults.link_lost: crlbswarm fly cannot cut a link yet"),
+    ],
+)  # fmt: skip
+def test_links_and_links_lost_are_refused(capsys, tmp_path, table, words):
+    data = copy.deepcopy(load_scenario("paper").model_dump())
+    data.update(table)
+    path = tmp_path / "s.toml"
+    path.write_text(Scenario.from_dict(data).to_toml())
+    assert words in fly_error(capsys, str(path), "--out", str(tmp_path / "o"))
+    assert not (tmp_path / "o").exists()
 
 
 def test_without_zenoh_the_error_names_the_extra(capsys, tmp_path, monkeypatch):

@@ -621,21 +621,23 @@ def _add_fly(sub: Any) -> None:
     _option(fly, fields, "--key", field="key", default=None, metavar="PREFIX",
             help="the flight's key prefix, the same for every member (by hand: default "
             "crlbswarm/fly; the launcher: one per flight)")  # fmt: skip
-    _option(fly, fields, "--kill", field="kill", type=_kill_spec, default=None,
+    _option(fly, fields, "--kill", field="kill", default=None,
             metavar="UAV@TIME", help="UAV's process kills itself (SIGKILL) when the mission "
             "reaches TIME s: a UAV lost, the others re-form (e.g. 2@100)")  # fmt: skip
     fly.add_argument("--parent", type=int, default=None, help=argparse.SUPPRESS)
 
 
-def _kill_spec(text: str) -> tuple[int, float]:
-    """``UAV@TIME`` of ``fly --kill``."""
+def _kill_spec(text: str | None) -> tuple[int, float] | None:
+    """``UAV@TIME`` of ``fly --kill`` (None: none)."""
+    if text is None:
+        return None
     uav, sep, at = text.partition("@")
     try:
         value = (int(uav), float(at))
     except ValueError:
         value = None
     if not sep or value is None or not math.isfinite(value[1]):
-        raise argparse.ArgumentTypeError(f"expected UAV@TIME (e.g. 2@100), got {text!r}")
+        raise FieldError("kill", f"expected UAV@TIME (e.g. 2@100), got {text!r}")
     return value
 
 
@@ -652,6 +654,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 
     import_zenoh()
     scenario = load_scenario(args.scenario)
+    args.kill = _kill_spec(args.kill)
     if args.uav is not None and args.out is not None:
         raise FieldError("out", "is the recorder's: not used with --uav")
     if args.uav is None and args.out is None:

@@ -103,6 +103,7 @@ __all__ = [
     "UavProcess",
     "compile_laws",
     "fly_run",
+    "kill_steps",
     "leader_reference",
     "measured_range",
     "phase_run",
@@ -230,8 +231,9 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
     Raises
     ------
     FieldError
-        (field ``scenario``) For a scenario with several targets; (``faults``) for one with
-        a ``[faults]`` table (not flown yet); (``seed``) for an invalid seed.
+        (field ``scenario``) For a scenario with several targets; (``links``) for one with
+        a ``[links]`` table; (``faults.link_lost``) for links lost (UAVs lost are flown);
+        (``seed``) for an invalid seed.
     """
     if not isinstance(scenario, Scenario):
         raise FieldError(
@@ -241,12 +243,16 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
         raise FieldError(
             "scenario", "has extra_targets (several targets): fly flies one formation"
         )
-    if scenario.faults is not None:
+    if scenario.links is not None:
         raise FieldError(
-            "faults",
-            "crlbswarm fly does not run a [faults] table yet (crlbswarm simulate "
-            "does); remove it to fly the mission",
-        )
+            "links", "crlbswarm fly does not fly a [links] table (its network is the link): "
+            "inject loss and delay at the sender with --loss and --delay, or remove it",
+        )  # fmt: skip
+    if scenario.faults is not None and scenario.faults.link_lost:
+        raise FieldError(
+            "faults.link_lost", "crlbswarm fly cannot cut a link yet (it flies the UAVs "
+            "lost: their processes kill themselves at their times); remove the links lost",
+        )  # fmt: skip
     sc, seed = scenario, _v.seed(seed, "seed")
     scene, index, ctl, rule, const = kernel_arguments(sc, 0)
     start = start_positions(sc, seed)
@@ -486,9 +492,7 @@ class UavProcess:
         self.late = 0  # steps it went on without a state it waited for
         self.warned: set[int] = set()
         self.injection = Injection(run.seed, m, options.loss, options.delay)
-        self.kill_step = -1
-        if options.kill is not None and options.kill[0] == m:
-            self.kill_step = round(options.kill[1] / run.const.dt)
+        self.kill_steps, self.leader_kill = kill_steps(run, m, options)
         self.x, self.p_cov = run.x0.copy(), run.scene.p0.copy()
         self.f_work = filter_work()
         self.node = -1
@@ -641,8 +645,9 @@ class UavProcess:
             left = [p for p in self.block.members.tolist() if p not in self.lost]
             self.leader = min(left)
             self.leading = self.leader == self.m
-            if not self.leading and self.options.mode == "stepped":  # (its state of step k)
-                inbox.wait_step(STATE, k, [self.leader], self.options.timeout, self.names)
+            stepped = self.options.mode == "stepped"
+            if not self.leading and stepped and self.stamps[self.leader] < k:  # (its state
+                inbox.wait_step(STATE, k, [self.leader], self.options.timeout, self.names)  # of k)
                 for packet in inbox.take(STATE, k):
                     self._absorb(packet)
 
@@ -788,13 +793,13 @@ class UavProcess:
 
     def fly(self) -> None:
         """Fly every step (on the wall clock in the real-time mode), then wait for the
-        recorder's end of the flight (at most the timeout). With ``options.kill`` naming
-        this UAV, it kills itself (SIGKILL) at that time instead."""
+        recorder's end of the flight (at most the timeout). At the time it is to be lost
+        (:func:`kill_steps`) it kills itself (SIGKILL) instead."""
         run, realtime = self.base, self.options.mode == "realtime"
         dt = run.const.dt
         start = time.monotonic()
         for k in range(run.k_steps + 1):
-            if k == self.kill_step:
+            if k in self.kill_steps or (k == self.leader_kill and self.leading):
                 os.kill(os.getpid(), signal.SIGKILL)
             if realtime:  # (a step that starts over a step late counts as late)
                 self.member.inbox.check_parent()
@@ -809,6 +814,39 @@ class UavProcess:
                 self._advance()
         inbox = self.member.inbox
         inbox.wait(lambda: (DONE, run.k_steps) in inbox.by_step, self.options.timeout)
+
+
+def kill_steps(run: FlyRun, m: int, options: FlightOptions) -> tuple[set[int], int]:
+    """The steps at which UAV ``m``'s process kills itself (SIGKILL): a UAV lost, the
+    scenario's ``faults.uav_lost`` naming it or ``--kill`` (``options.kill``), and the step
+    of ``faults.leader_lost`` (at which the UAV leading then kills itself; -1: none).
+
+    Parameters
+    ----------
+    run : FlyRun
+        The run.
+    m : int
+        The UAV.
+    options : FlightOptions
+        The flight's options.
+
+    Returns
+    -------
+    steps : set of int
+        Its own steps.
+    leader : int
+        The step of the leader's loss.
+    """
+    dt, faults = run.const.dt, run.scenario.faults
+    steps = set()
+    if options.kill is not None and options.kill[0] == m:
+        steps.add(round(options.kill[1] / dt))
+    leader = -1
+    if faults is not None:
+        steps |= {round(loss.time / dt) for loss in faults.uav_lost if loss.uav == m}
+        if faults.leader_lost is not None:
+            leader = round(faults.leader_lost / dt)
+    return steps, leader
 
 
 def _say(text: str) -> None:
