@@ -17,15 +17,18 @@ Loss
     longer heard by either end, from the step it is lost.
 Detection
     Nobody is told. The swarm declares a UAV lost after ``timeout`` seconds without a
-    message from it (the field of :class:`FaultsConfig`; with perfect links a live UAV is
-    never silent, so nothing else is ever declared lost). Until then the formation keeps
-    its slots, its leader and its graph, minus what is silent.
+    message from it (the field of :class:`FaultsConfig`). A live UAV is never declared
+    lost: with perfect links it is never silent, and with lossy links (a ``[links]``
+    table) the timeout is taken to be longer than any gap loss and delay make (a run's
+    ``max_age_s`` tells the longest). Until then the formation keeps its slots, its leader
+    and its graph, minus what is silent.
 Re-planning (at the step a loss is declared)
-    The UAVs left, and the graph among them (the configured graph without the lost UAVs
-    and lost links), form the new swarm. If that graph has several parts, the part with
-    the most UAVs goes on (ties: the part of the current leader, then the part of the
-    lowest index) and the others hover where they are: the outcome is ``split``. If fewer
-    than three UAVs go on, none can fly a formation: all hover, the outcome is ``too_few``.
+    The UAVs left, and the graph among them (the swarm's communication graph,
+    :func:`swarm_links`, without the lost UAVs and lost links), form the new swarm. If
+    that graph has several parts, the part with the most UAVs goes on (ties: the part of
+    the current leader, then the part of the lowest index) and the others hover where
+    they are: the outcome is ``split``. If fewer than three UAVs go on, none can fly a
+    formation: all hover, the outcome is ``too_few``.
     Otherwise the new swarm flies the optimal formation for its own UAVs (the scenario's
     design over the same target, for these UAVs and their radars: :func:`phase_scenario`),
     its slots taken by the rule of ``formation.assignment`` from the positions where the
@@ -35,6 +38,9 @@ Re-planning (at the step a loss is declared)
 Leader election
     If the leader is among the UAVs that go on, it stays leader; otherwise the UAV with the
     lowest index among them leads. Every UAV can apply the rule alone, with no vote.
+Links
+    With a ``[links]`` table a silent UAV and a lost link leave the link layer's graph as
+    they leave the laws'; the link layer restarts at each phase, as at the start.
 Draws
     Phase ``p`` draws the disturbance (and the links) from the streams ``stream + p *``
     :data:`crlbswarm.counter_rng.PHASE_STREAMS` of the run's seed, so a run's bits do not

@@ -32,6 +32,13 @@ slots, the target's trajectory and the keys of its draws
 (:func:`crlbswarm.simulation.run_keys`); the states at take-off (the starts, velocities 0)
 are known to all. With perfect links and the stepped mode each UAV acts on exactly the
 numbers the kernel uses, so the flight is the simulation, bit for bit.
+
+A UAV whose member is gone is **lost** (:class:`UavProcess`): the leader re-plans the
+formation of the UAVs left with the simulator's rules (:func:`crlbswarm.faults.decide`,
+:func:`crlbswarm.faults.phase_scenario`, :func:`crlbswarm.simulation.replanned_slots`) and
+tells it in every message (:class:`crlbswarm.flynet.SwarmBlock`); each UAV then runs the
+laws on its row of the members' arrays (:func:`phase_run`). A lost leader is replaced by
+the member of lowest index left, which re-plans at its next step.
 """
 
 from __future__ import annotations
