@@ -335,6 +335,20 @@ def test_a_lost_link_leaves_the_members_and_slots():
     assert not np.array_equal(a.positions[:, -1], b.positions[:, -1])  # (phase 1's draws)
 
 
+def test_eta_and_the_route_carry_on_across_the_phases():
+    """With the route planner and the eta rule on (``paper_safe``), a loss in the passage
+    does not restart the rule: eta never moves faster than its rate, across the loss and the
+    re-planning (the formation takes its goal's scale at the mission's start only)."""
+    data = cs.load_scenario("paper_safe").model_dump(exclude_none=True)
+    data["time"].update(duration=60.0)
+    data["faults"] = _lost(3, 49.4)
+    sc = cs.Scenario.from_dict(data, source="test")
+    r = cs.simulate(sc, seed=0)
+    assert [ph.start for ph in sc.fault_plan.phases] == [0, 494, 504]
+    step = sc.eta_rule.rate * sc.time.step
+    assert np.abs(np.diff(r.eta[0])).max() <= step * (1 + 1e-9)
+
+
 # -- faults with communication links ----------------------------------------------------------
 MIXED = {"uav_lost": [{"uav": 4, "time": 5.0}], "leader_lost": 12.0,
          "link_lost": [{"uavs": [1, 2], "time": 3.0}], "timeout": 0.5}  # fmt: skip

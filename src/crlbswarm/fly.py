@@ -199,6 +199,7 @@ class Recorder:
         self.positions[k] = self.positions[before] if k else run.start
         self.velocities[k] = 0.0
         clear = []
+        newest = self.block
         for m, packet in packets.items():
             values = packet.values
             self.positions[k, m] = values[0:2]
@@ -206,8 +207,12 @@ class Recorder:
             clear.append(values[4])
             self.late[m] = int(values[10])
             block = SwarmBlock.read(values, len(LOG_FIELDS))
-            if block is not None and block.newer_than(self.block):
-                self._adopt(block, k)
+            if block is not None and block.newer_than(newest):
+                newest = block
+        if k:  # (the move from step k - 1, under the formation then)
+            self._cost(k)
+        if newest is not self.block:
+            self._adopt(newest, k)
         heads = [p.values for p in packets.values() if not math.isnan(p.values[5])]
         if heads:  # (the leader's log; none while a lost leader is replaced: held)
             head = heads[0]
@@ -223,8 +228,8 @@ class Recorder:
         self.recorded = k
 
     def _metrics(self, k: int, packets: dict[int, Packet]) -> None:
-        """The CRLB, centroid, separation and cost of step ``k``: over every UAV (the
-        kernel's arrays) while none is lost, else over the formation's UAVs that logged."""
+        """The CRLB, centroid and separation of step ``k``: over every UAV (the kernel's
+        arrays) while none is lost, else over the formation's UAVs that logged."""
         run = self.run
         every = self.block.phase == 0 and len(packets) == run.m_uavs
         rows = np.array([p for p in self.block.members.tolist() if p in packets], np.int64)
@@ -238,9 +243,11 @@ class Recorder:
             k, q, v, run.target[k, 0], run.target[k, 1], self.part, scene, const,
             self.centroid, self.fim, self.crlb, self.centroid_error, run.crowd,
         )  # fmt: skip
-        if k == 0:
-            return
-        brun = self.brun
+
+    def _cost(self, k: int) -> None:
+        """The cost of eq. (15) of the move from step ``k - 1`` to ``k``, with the formation
+        flown at step ``k - 1`` (:func:`crlbswarm.control.control_cost`)."""
+        run, brun = self.run, self.brun
         if brun is None:  # (hovering: no formation, no cost)
             self.cost[k - 1] = 0.0
             return
@@ -310,7 +317,8 @@ class Recorder:
         sc = run.scenario
         if self.declared and sc.links is None and run.track is None:
             dt = sc.time.step
-            lost = [{"uav": p, "time": (k - 1) * dt} for p, k in sorted(self.declared.items())]
+            lost = [{"uav": p, "time": max(k - 1, 0) * dt}  # (a loss at step 0: at 0)
+                    for p, k in sorted(self.declared.items())]  # fmt: skip
             sc = Scenario.from_dict({**sc.model_dump(), "faults": {"timeout": dt,
                                                                    "uav_lost": lost}})  # fmt: skip
         return sc if steps == run.k_steps else cut_scenario(sc, steps, why)

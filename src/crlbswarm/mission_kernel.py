@@ -86,6 +86,7 @@ __all__ = [
     "FILTER_ITERATIONS",
     "REPLAN_PERIOD",
     "UAV_BLOCK",
+    "UNPLANNED",
     "GroupArrays",
     "GroupOutputs",
     "MissionConstants",
@@ -118,6 +119,10 @@ __all__ = [
     "step_state",
     "update_block",
 ]
+
+#: The route's node of a leader that has planned none yet (at the start of a mission or a
+#: phase, or a new leader of ``crlbswarm fly``): it plans at once.
+UNPLANNED = -3
 
 #: A run whose UAV has a coordinate beyond this, m, or at NaN, diverged: it left the
 #: model's range (every start and target lies inside it), where the CRLB is not computed.
@@ -187,6 +192,11 @@ class MissionConstants(NamedTuple):
         The same, y, m.
     sigma : float
         Standard deviation of the motion disturbance per axis and step, m.
+    first_step : int
+        The mission's step of the kernel's step 0: 0 for a mission, the start of a phase
+        of a mission with faults (:mod:`crlbswarm.faults`), so that the route's
+        re-planning keeps its rhythm and the formation takes its goal's scale only at the
+        mission's start.
     """
 
     dt: float
@@ -210,6 +220,7 @@ class MissionConstants(NamedTuple):
     centre_x: float
     centre_y: float
     sigma: float
+    first_step: int
 
 
 class SceneArrays(NamedTuple):
@@ -610,11 +621,13 @@ def leader_step(k, q, v, vref, cx, cy, sx, sy, tvx, tvy, eta, node, rects, circl
     takes its goal's scale. Returns ``(eta, node)``."""
     leader = const.leader
     if route is not None:
+        step = k + const.first_step  # (the mission's step)
+        replan = node == UNPLANNED or step % const.replan_every == 0
         gx, gy, fvx, fvy, togo, node = leader_goal(
-            cx, cy, sx, sy, tvx, tvy, scene, const, node, k % const.replan_every == 0
-        )
+            cx, cy, sx, sy, tvx, tvy, scene, const, node, replan
+        )  # fmt: skip
         out.distance_to_go[k] = togo
-        if k == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
+        if step == 0 and rule.enabled:  # the formation forms at its goal's scale (the paper's
             eta = route_eta_goal(  # rule starts at 1)
                 cx, cy, sx, sy, node, scene.nodes, scene.next_node, const.radius, rects,
                 circles, index,
@@ -828,7 +841,7 @@ def run_mission(out, inp, scene, index, ctl, rule, const, safe, route, track, wi
     b_work = np.empty(max(n_rows, 1))
     vref = v[const.leader].copy()  # (a lost leader's last reference: where it resumes)
     ranges = np.empty(m_uavs)
-    node = -1  # the route's current node (re-planned every replan_every steps)
+    node = UNPLANNED  # the route's current node (re-planned every replan_every steps)
     x = inp.x0.copy()
     p_cov = scene.p0.copy()
     f_work = filter_work()

@@ -300,7 +300,7 @@ def _keep_rows(k_steps: int, stride: int) -> np.ndarray:
     return keep
 
 
-def kernel_arguments(sc: Scenario, stride: int = 1
+def kernel_arguments(sc: Scenario, stride: int = 1, first_step: int = 0
                      ) -> tuple[SceneArrays, Any, Any, Any, MissionConstants]:  # fmt: skip
     """The compiled mission's shared arguments for a scenario.
 
@@ -310,6 +310,9 @@ def kernel_arguments(sc: Scenario, stride: int = 1
         The scenario.
     stride : int, default 1
         The trajectories are kept every ``stride`` steps and at the last (0: not kept).
+    first_step : int, default 0
+        The mission's step of the kernel's step 0 (``MissionConstants.first_step``: the
+        start of a phase of a mission with faults).
 
     Returns
     -------
@@ -368,6 +371,7 @@ def kernel_arguments(sc: Scenario, stride: int = 1
         centre_x=float(sc.formation_design.centre_offset[0]),
         centre_y=float(sc.formation_design.centre_offset[1]),
         sigma=float(sc.disturbance.sigma),
+        first_step=int(first_step),
     )
     index = obstacle_index(
         sc.obstacle_set.rectangles, sc.obstacle_set.circles, float(sc.gains.safety_radius)
@@ -602,7 +606,7 @@ def _phase_arguments(sc: Scenario, ph: Phase, kept: np.ndarray) -> _PhaseArgumen
     keep[-1] = last
     if ph.scenario is None:
         return _PhaseArguments(None, in_phase, np.arange(steps.size), last, steps.size + 1)
-    scene, index, ctl, rule, const = kernel_arguments(ph.scenario, 0)
+    scene, index, ctl, rule, const = kernel_arguments(ph.scenario, 0, ph.start)
     scene = phase_scene(scene, ph.indptr, ph.indices, np.where(ph.frozen != 0, 0.0, scene.snr),
                         keep)  # fmt: skip
     return _PhaseArguments((scene, index, ctl, rule, const), in_phase, np.arange(steps.size),
@@ -799,10 +803,11 @@ def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, bat
     steps = slice(k0, k1 + 1)
     target = batch.target[lo:hi, steps]
     held = ["eta", "clearance", "separation", "distance_to_go"]
-    if ph.members.size:
-        left = q[:, ph.members]
+    sensing = ph.members[ph.frozen == 0]  # (a UAV lost while they hover senses no more)
+    if sensing.size:
+        left = q[:, sensing]
         batch.crlb[lo:hi, steps] = crlb(left[:, None], target, sc.altitude,
-                                        sc.radar_model.take(ph.members))  # fmt: skip
+                                        sc.radar_model.take(sensing))  # fmt: skip
         centroid = left.mean(axis=1)
         batch.centroid[lo:hi, steps] = centroid[:, None]
         offset = centroid[:, None] - target

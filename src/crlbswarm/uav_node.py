@@ -58,7 +58,7 @@ from . import _validation as _v
 from .counter_rng import RANGE_NOISE, normal_pair
 from .errors import FieldError
 from .estimation import noisy_range
-from .faults import decide, phase_scenario
+from .faults import decide, phase_scenario, swarm_links
 from .flynet import (
     DONE,
     LOG,
@@ -80,6 +80,7 @@ from .flynet import (
 )
 from .mission_kernel import (
     FILTER_ITERATIONS,
+    UNPLANNED,
     MissionConstants,
     RunOutputs,
     SceneArrays,
@@ -415,7 +416,7 @@ def compile_laws(run: FlyRun) -> None:
     out = _leader_outputs(run.k_steps)
     cx, cy, sx, sy, eta, node = leader_reference(
         0, q, v, vref, run.delta, run.target[0, 0], run.target[0, 1], run.target[0, 0],
-        run.target[0, 1], 0.0, 0.0, 1.0, -1, part, run.scene, run.index, run.ctl, run.rule,
+        run.target[0, 1], 0.0, 0.0, 1.0, UNPLANNED, part, run.scene, run.index, run.ctl, run.rule,
         run.const, out, run.route,
     )  # fmt: skip
     uav_move(0, leader, q, q_next, v, v_next, run.delta, eta, vref, u, rep, clear, d, a_work,
@@ -494,7 +495,9 @@ class UavProcess:
         self.ranges, self.range_q = np.full(n, np.nan), run.start.copy()
         self.unfused = np.zeros(n, dtype=bool)
         self.stamps = np.zeros(n, dtype=np.int64)  # the step of each UAV's state held
+        self.heard = np.full(n, -1, dtype=np.int64)  # the step of each UAV's last message
         self.names = {p: member_name(p) for p in range(n)}
+        self.base_links = swarm_links(run.scenario)  # (the graph decisions are made on)
         self.lost: set[int] = set()  # UAVs whose member is gone
         self.late = 0  # steps it went on without a state it waited for
         self.warned: set[int] = set()
@@ -502,7 +505,7 @@ class UavProcess:
         self.kill_steps, self.leader_kill = kill_steps(run, m, options)
         self.x, self.p_cov = run.x0.copy(), run.scene.p0.copy()
         self.f_work = filter_work()
-        self.node = -1
+        self.node = UNPLANNED
         self.out = _leader_outputs(run.k_steps)
         self.leader_x = np.empty(0)  # the last estimate the leader sent (a new leader's start)
         block = SwarmBlock(0, -1, False, run.leader, np.arange(n, dtype=np.int64),
@@ -532,7 +535,7 @@ class UavProcess:
         self.a_work, self.b_work = np.empty((rows, 2)), np.empty(rows)
         self.part = np.zeros((1, 8))
         if takes_over and self.leading:  # (a new leader: the filter from the last estimate
-            self.node = -1  # the old leader sent, with the prior's covariance)
+            self.node = UNPLANNED  # the old leader sent, with the prior's covariance)
             if self.leader_x.shape[0] == self.x.shape[0]:
                 self.x = self.leader_x.copy()
             self.p_cov = self.base.scene.p0.copy()
@@ -553,8 +556,7 @@ class UavProcess:
         gone = {p for p in members if p in self.lost}
         if not gone:
             return
-        edges = {(int(a), int(b)) for a, b in base.scenario.adjacency.edges}
-        choice = decide(members, block.leader, edges, gone)
+        choice = decide(members, block.leader, self.base_links, gone)
         keep = np.array(choice.members, dtype=np.int64)
         hover = choice.outcome == "too_few"
         delta = np.zeros((keep.shape[0], 2))
@@ -603,6 +605,7 @@ class UavProcess:
         """Take a UAV's state (if newer than the one held), and the formation it tells if
         that is newer."""
         p, values = packet.sender, packet.values
+        self.heard[p] = max(self.heard[p], packet.step)
         if packet.stamp == NO_STAMP or packet.stamp < self.stamps[p] or p == self.m:
             return
         self.stamps[p] = packet.stamp
@@ -648,15 +651,21 @@ class UavProcess:
                      f"{self.options.timeout:g} s; going on with the one of step "
                      f"{self.stamps[p]} (and so on whenever it is late: fly.json counts "
                      "the steps)")  # fmt: skip
-        if self.leader in self.lost and not self.hovering:  # (elect: lowest index left)
-            left = [p for p in self.block.members.tolist() if p not in self.lost]
-            self.leader = min(left)
-            self.leading = self.leader == self.m
-            stepped = self.options.mode == "stepped"
-            if not self.leading and stepped and self.stamps[self.leader] < k:  # (its state
-                inbox.wait_step(STATE, k, [self.leader], self.options.timeout, self.names)  # of k)
-                for packet in inbox.take(STATE, k):
-                    self._absorb(packet)
+        if self.leader in self.lost and not self.hovering:
+            self._elect(k)
+
+    def _elect(self, k: int) -> None:
+        """The leader is gone: elect the one the re-planning will name
+        (:func:`crlbswarm.faults.decide` over the members gone), and, stepped, take its
+        state of step ``k``."""
+        inbox, members = self.member.inbox, self.block.members.tolist()
+        gone = {p for p in members if p in self.lost or self.names[p] in inbox.gone}
+        self.leader = decide(members, self.leader, self.base_links, gone).leader
+        self.leading = self.leader == self.m
+        if not self.leading and self.options.mode == "stepped" and self.heard[self.leader] < k:
+            inbox.wait_step(STATE, k, [self.leader], self.options.timeout, self.names)
+            for packet in inbox.take(STATE, k):
+                self._absorb(packet)
 
     def _wait_states(self, k: int) -> set[int]:
         """Stepped: wait for the senders' states of step ``k``, take every state received,
@@ -806,7 +815,7 @@ class UavProcess:
         dt = run.const.dt
         start = time.monotonic()
         for k in range(run.k_steps + 1):
-            if k in self.kill_steps or (k == self.leader_kill and self.leading):
+            if k in self.kill_steps or (k == self.leader_kill and self.block.leader == self.m):
                 os.kill(os.getpid(), signal.SIGKILL)
             if realtime:  # (a step that starts over a step late counts as late)
                 self.member.inbox.check_parent()
@@ -826,7 +835,8 @@ class UavProcess:
 def kill_steps(run: FlyRun, m: int, options: FlightOptions) -> tuple[set[int], int]:
     """The steps at which UAV ``m``'s process kills itself (SIGKILL): a UAV lost, the
     scenario's ``faults.uav_lost`` naming it or ``--kill`` (``options.kill``), and the step
-    of ``faults.leader_lost`` (at which the UAV leading then kills itself; -1: none).
+    of ``faults.leader_lost`` (at which the leader of the formation flown then, the one
+    its last re-planning named, kills itself; -1: none).
 
     Parameters
     ----------
