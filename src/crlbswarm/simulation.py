@@ -756,7 +756,7 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
         np.ascontiguousarray(v[:, ph.members]),
     )  # fmt: skip
     status = buf.status[:n]
-    frozen = ph.frozen if ph.frozen.any() else None
+    frozen = ph.frozen  # (an array in every phase, zeros too: one compiled mission)
     link_io = None
     if args.links is not None:
         keys = np.array([stream_key(int(s), LINKS + p * PHASE_STREAMS) for s in seeds])
