@@ -415,6 +415,9 @@ class _ChunkBuffers:
         self.x0 = np.zeros((chunk_runs, n_state))
         self.delta = np.empty((chunk_runs, m, 2))
         self.velocity = np.zeros((chunk_runs, m, 2))  # (a mission starts at rest)
+        # (no UAV frozen: a mission without faults passes the marker of a phase with
+        # none, so that faults compile no other mission, :func:`_run_phase`)
+        self.frozen = np.zeros(m, dtype=np.int8)
         self.status = np.empty(chunk_runs, dtype=np.int64)
         self.link_keys = np.empty((chunk_runs, 2), dtype=np.int64)
 
@@ -562,10 +565,10 @@ def _run_chunk(
         status[0] = run_mission(RunOutputs(*(a[0] for a in outs)),
                                 RunInputs(*(a[0] for a in inps)), *kernel_args,
                                 *layer_markers(sc), wide, _crowd(sc), links, lio,
-                                None)  # fmt: skip
+                                buf.frozen)  # fmt: skip
     else:
         run_batch(tuple(outs), tuple(inps), status, *kernel_args, *layer_markers(sc),
-                  _crowd(sc), links, link_io, None)  # fmt: skip
+                  _crowd(sc), links, link_io, buf.frozen)  # fmt: skip
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(sc, lo + int(bad[0]), int(seeds[bad[0]]), int(status[bad[0]]))
@@ -756,7 +759,7 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
         np.ascontiguousarray(v[:, ph.members]),
     )  # fmt: skip
     status = buf.status[:n]
-    frozen = ph.frozen  # (an array in every phase, zeros too: one compiled mission)
+    frozen = ph.frozen  # (an array in every phase, zeros too: the mission without faults)
     link_io = None
     if args.links is not None:
         keys = np.array([stream_key(int(s), LINKS + p * PHASE_STREAMS) for s in seeds])
