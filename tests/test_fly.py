@@ -166,7 +166,7 @@ def killed_flight(flight, uav: int, at: float, count: int = 4, duration: float =
     return status, out, err, scenario, load_results(tmp / "out"), record
 
 
-@pytest.mark.parametrize("uav", [2, 0], ids=["follower", "leader"])
+@pytest.mark.parametrize("uav", [0], ids=["leader"])  # (a follower: the next test)
 def test_a_uav_killed_outright_is_lost_and_the_others_re_form(flight, uav):
     """SIGKILL to UAV ``uav``'s process at t = 10 s (stepped, 4 UAVs on a ring): the
     others see it gone, the leader (UAV 0, or after it is lost UAV 1, the lowest index left)
