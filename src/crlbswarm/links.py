@@ -87,32 +87,43 @@ from .graphs import Adjacency
 __all__ = [
     "CHANNEL_DRAW",
     "DELAY_DRAW",
+    "DRAW_BATCH",
+    "DRAW_BATCH_PAIRS",
     "LINK_SERIES",
     "LOSS_DRAW",
     "LOSS_MODELS",
     "MAX_ALL_PAIRS_UAVS",
     "MAX_DELAY",
+    "STATE_HEADER",
     "LinkModel",
     "LinkState",
     "LinksConfig",
     "all_pairs_adjacency",
+    "arrivals",
     "broadcast",
     "candidate_links",
     "check_links",
     "connected_fresh",
+    "draw_kind",
     "draw_messages",
     "exchange",
+    "in_range",
+    "link_ages",
     "link_model",
     "link_pairs",
     "link_series",
     "link_state",
     "link_state_bytes",
     "link_uniform",
+    "links_in_use",
     "message_fate",
     "message_fates",
+    "model_layout",
     "neighbour_tables",
     "pair_draws",
-    "receive",
+    "send_gilbert",
+    "send_messages",
+    "state_layout",
 ]
 
 #: Largest delay of a message, steps (each run keeps this many past states per UAV).
@@ -121,6 +132,26 @@ MAX_DELAY = 1000
 #: Most UAVs of a mission whose range links every pair (``use_graph = false``): every
 #: ordered pair is a candidate link, M (M - 1) of them.
 MAX_ALL_PAIRS_UAVS = 1000
+
+#: Sending steps whose message uniforms a run draws at once (:func:`draw_messages`), when
+#: the candidate links join at most :data:`DRAW_BATCH_PAIRS` pairs of UAVs: the Philox
+#: blocks of a few pairs are then enough to fill the SIMD lanes (with more pairs, those of
+#: one step are).
+DRAW_BATCH = 8
+
+#: Most pairs of UAVs for which a run draws :data:`DRAW_BATCH` sending steps at once.
+DRAW_BATCH_PAIRS = 64
+
+#: Words at the start of :attr:`LinkState.ints`: M, E, ``delay_max + 1`` and the uniforms
+#: per kind (its parts' sizes, for the properties).
+STATE_HEADER = 4
+
+
+#: The kernels index the flat buffers of a :class:`LinkState` and a :attr:`LinkModel.table`
+#: with unsigned integers (``buffer[_U(i)]``): the offsets are never negative, and Numba
+#: then emits no wraparound of negative indices (a third of the instructions of a loop
+#: over the links).
+_U = np.uint64
 
 #: The loss models.
 LOSS_MODELS = ("bernoulli", "gilbert")
@@ -369,7 +400,9 @@ def candidate_links(
 
 
 class LinkModel(NamedTuple):
-    """The link model as the compiled mission receives it (:func:`link_model`).
+    """The link model as the compiled mission receives it (:func:`link_model`): scalars and
+    one flat integer table (a compiled function receives each array as several words, so
+    few arrays make its calls cheap). The table's parts are the properties below.
 
     Parameters
     ----------
@@ -404,21 +437,20 @@ class LinkModel(NamedTuple):
         How many candidate links the laws may use (the communication graph is then whole).
     dt : float
         The time step, s (ages in seconds).
-    indptr : ndarray of int64, shape (M+1,)
-        The candidate links by receiver (:func:`candidate_links`).
-    senders : ndarray of int64, shape (E,)
-        Their senders.
-    law : ndarray of bool, shape (E,)
-        Whether the laws use them.
-    pair_lo : ndarray of int64, shape (P,)
-        The pairs of UAVs linked in at least one direction: the lower UAV
-        (:func:`pair_draws`).
-    pair_hi : ndarray of int64, shape (P,)
-        The higher UAV.
-    pair_fwd : ndarray of int64, shape (P,)
-        The link from the lower to the higher, -1 if it is not a candidate.
-    pair_back : ndarray of int64, shape (P,)
-        The link from the higher to the lower, or -1.
+    n_uavs : int
+        Number of UAVs, M.
+    n_links : int
+        Number of candidate links, E.
+    n_pairs : int
+        Number of pairs of UAVs linked in at least one direction, P.
+    batch : int
+        Sending steps whose uniforms are drawn at once (:data:`DRAW_BATCH` for at most
+        :data:`DRAW_BATCH_PAIRS` pairs, else 1).
+    table : ndarray of int64
+        :attr:`indptr`, :attr:`senders`, :attr:`receivers`, :attr:`law`,
+        :attr:`pair_slot`, :attr:`pair_lo`, :attr:`pair_hi`, :attr:`pair_fwd`,
+        :attr:`pair_back`, :attr:`draw_lo`, :attr:`draw_hi` and :attr:`draw_step`, one
+        after the other (:func:`model_layout`).
     """
 
     period: int
@@ -436,13 +468,101 @@ class LinkModel(NamedTuple):
     stale: int
     law_links: int
     dt: float
-    indptr: np.ndarray
-    senders: np.ndarray
-    law: np.ndarray
-    pair_lo: np.ndarray
-    pair_hi: np.ndarray
-    pair_fwd: np.ndarray
-    pair_back: np.ndarray
+    n_uavs: int
+    n_links: int
+    n_pairs: int
+    batch: int
+    table: np.ndarray
+
+    def _part(self, i: int) -> np.ndarray:
+        at = model_layout(self.n_uavs, self.n_links, self.n_pairs, self.batch)
+        return self.table[at[i] : at[i + 1]]
+
+    @property
+    def indptr(self) -> np.ndarray:
+        """The candidate links by receiver (:func:`candidate_links`), shape (M+1,)."""
+        return self._part(0)
+
+    @property
+    def senders(self) -> np.ndarray:
+        """The sender of each candidate link, shape (E,)."""
+        return self._part(1)
+
+    @property
+    def receivers(self) -> np.ndarray:
+        """The receiver of each candidate link, shape (E,)."""
+        return self._part(2)
+
+    @property
+    def law(self) -> np.ndarray:
+        """Whether the laws use each link (bool, shape (E,); False: the leader's eta only)."""
+        return self._part(3).astype(bool)
+
+    @property
+    def pair_slot(self) -> np.ndarray:
+        """Where each link's uniform is among a sending step's ``2 P`` of a kind
+        (:attr:`LinkState.draws`): ``2 i`` for the link from ``pair_lo[i]`` to
+        ``pair_hi[i]``, ``2 i + 1`` for the other direction; shape (E,)."""
+        return self._part(4)
+
+    @property
+    def pair_lo(self) -> np.ndarray:
+        """The pairs of UAVs linked in at least one direction: the lower UAV
+        (:func:`pair_draws`), shape (P,)."""
+        return self._part(5)
+
+    @property
+    def pair_hi(self) -> np.ndarray:
+        """The higher UAV of each pair, shape (P,)."""
+        return self._part(6)
+
+    @property
+    def pair_fwd(self) -> np.ndarray:
+        """The link from the lower UAV of each pair to the higher, -1 if it is not a
+        candidate; shape (P,)."""
+        return self._part(7)
+
+    @property
+    def pair_back(self) -> np.ndarray:
+        """The link from the higher UAV to the lower, or -1; shape (P,)."""
+        return self._part(8)
+
+    @property
+    def draw_lo(self) -> np.ndarray:
+        """``pair_lo`` repeated ``batch`` times: the blocks of a batch of draws, in the
+        order of :attr:`LinkState.draws`; shape (batch P,)."""
+        return self._part(9)
+
+    @property
+    def draw_hi(self) -> np.ndarray:
+        """``pair_hi`` likewise, shape (batch P,)."""
+        return self._part(10)
+
+    @property
+    def draw_step(self) -> np.ndarray:
+        """Each block's sending step after its batch's first (``b period`` for the
+        ``b``-th), shape (batch P,)."""
+        return self._part(11)
+
+
+@njit(cache=True, inline="always")
+def model_layout(m, e, p, b):
+    """Where the parts of :attr:`LinkModel.table` start (and the last ends), for M UAVs,
+    E links, P pairs and batches of ``b`` sending steps (the layout's one writing)."""
+    senders = m + 1
+    receivers = senders + e
+    law = receivers + e
+    slot = law + e
+    lo = slot + e
+    hi = lo + p
+    fwd = hi + p
+    back = fwd + p
+    draw_lo = back + p
+    draw_hi = draw_lo + b * p
+    draw_step = draw_hi + b * p
+    return 0, senders, receivers, law, slot, lo, hi, fwd, back, draw_lo, draw_hi, draw_step, (
+        draw_step + b * p
+    )
 
 
 def link_pairs(
@@ -504,21 +624,58 @@ def link_model(links: LinksConfig, adjacency: Adjacency, leader: int, dt: float)
     """
     indptr, senders, law = candidate_links(adjacency, leader, links.use_graph)
     pair_lo, pair_hi, pair_fwd, pair_back = link_pairs(indptr, senders)
+    receivers = np.repeat(np.arange(indptr.size - 1, dtype=np.int64), np.diff(indptr))
+    pair_slot = np.empty(senders.size, dtype=np.int64)
+    pair_slot[pair_fwd[pair_fwd >= 0]] = 2 * np.flatnonzero(pair_fwd >= 0)
+    pair_slot[pair_back[pair_back >= 0]] = 2 * np.flatnonzero(pair_back >= 0) + 1
+    period = links.period(dt)
+    batch = DRAW_BATCH if pair_lo.size <= DRAW_BATCH_PAIRS else 1
+    draw_step = np.repeat(np.arange(batch, dtype=np.int64) * period, pair_lo.size)
+    table = np.concatenate([
+        indptr, senders, receivers, law.astype(np.int64), pair_slot, pair_lo, pair_hi,
+        pair_fwd, pair_back, np.tile(pair_lo, batch), np.tile(pair_hi, batch), draw_step,
+    ]).astype(np.int64)  # fmt: skip
     gilbert = links.loss_model == "gilbert"
     p_gb = float(links.p_good_bad or 0.0)
     p_bg = float(links.p_bad_good or 0.0)
     return LinkModel(
-        period=links.period(dt), depth=links.largest_delay + 1, delay=links.delay,
+        period=period, depth=links.largest_delay + 1, delay=links.delay,
         span=links.largest_delay - links.delay + 1,
         range2=math.inf if links.range is None else float(links.range) ** 2,
         loss=float(links.loss), gilbert=gilbert, p_good_bad=p_gb, p_bad_good=p_bg,
         pi_bad=p_gb / (p_gb + p_bg) if gilbert else 0.0,
         loss_good=float(0.0 if links.loss_good is None else links.loss_good),
         loss_bad=float(1.0 if links.loss_bad is None else links.loss_bad),
-        stale=links.timeout_steps(dt), law_links=int(law.sum()), dt=float(dt), indptr=indptr,
-        senders=senders, law=law, pair_lo=pair_lo, pair_hi=pair_hi, pair_fwd=pair_fwd,
-        pair_back=pair_back,
+        stale=links.timeout_steps(dt), law_links=int(law.sum()), dt=float(dt),
+        n_uavs=int(indptr.size - 1), n_links=int(senders.size), n_pairs=int(pair_lo.size),
+        batch=batch, table=table,
     )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def state_layout(m, e, d, w):
+    """Where the parts of a :class:`LinkState` start (and the last of each buffer ends),
+    for M UAVs, E links, ``d`` (``delay_max + 1``) past states and ``w`` uniforms per kind
+    (the layout's one writing): in ``floats`` the history, ``recv_q``, ``recv_v``, ``eta``,
+    ``eta_stamp``, ``draws``; in ``ints`` (after :data:`STATE_HEADER` words: M, E, d, w)
+    ``pending``, ``stamp``, ``tally``, ``act_indptr``, ``act_senders``, ``act_links``,
+    ``parent``; in ``flags`` ``channel``, ``near``."""
+    recv_q = d * m * 6
+    recv_v = recv_q + 2 * e
+    eta = recv_v + 2 * e
+    eta_stamp = eta + m
+    draws = eta_stamp + m
+    floats = draws + 3 * w
+    pending = STATE_HEADER
+    stamp = pending + e * d
+    tally = stamp + e
+    act_indptr = tally + 3
+    act_senders = act_indptr + m + 1
+    act_links = act_senders + e
+    parent = act_links + e
+    ints = parent + m
+    return (0, recv_q, recv_v, eta, eta_stamp, draws, floats, pending, stamp, tally, act_indptr,
+            act_senders, act_links, parent, ints, 0, e, 2 * e)  # fmt: skip
 
 
 def link_state_bytes(model: LinkModel) -> int:
@@ -534,77 +691,157 @@ def link_state_bytes(model: LinkModel) -> int:
     int
         Bytes.
     """
-    m_uavs, n_links = model.indptr.shape[0] - 1, model.senders.shape[0]
-    return 8 * (model.depth * m_uavs * 6 + 4 * m_uavs + 3) + n_links * (8 * model.depth + 81)
+    at = state_layout(model.n_uavs, model.n_links, model.depth,
+                      2 * model.batch * model.n_pairs)  # fmt: skip
+    return 8 * (at[6] + at[14]) + at[17]
 
 
 class LinkState(NamedTuple):
-    """One run's link state, allocated once (:func:`link_state`); M UAVs, E links, D the
-    largest delay.
+    """One run's link state, allocated once (:func:`link_state`) as three buffers (a
+    compiled function receives each array as several words: few make its calls cheap);
+    M UAVs, E links, D the largest delay, P pairs. The parts are the properties below
+    (views; :func:`state_layout`).
 
     Parameters
     ----------
-    history : ndarray, shape (D+1, M, 6)
-        Each UAV's broadcast state at the last D+1 sending steps, in slot ``step % (D+1)``:
-        x, y, vx, vy, its :math:`\\eta` and that value's stamp.
-    pending : ndarray of int64, shape (E, D+1)
-        Per link, the send step of the newest message arriving at each step (slot
-        ``arrival % (D+1)``), -1 for none.
-    recv_q : ndarray, shape (E, 2)
-        Per link, the last received position, m.
-    recv_v : ndarray, shape (E, 2)
-        The last received velocity, m/s.
-    stamp : ndarray of int64, shape (E,)
-        The send step of the last received message, -1 before any.
-    channel : ndarray of int8, shape (E,)
-        The Gilbert-Elliott state: -1 before the first message, 0 good, 1 bad.
-    tally : ndarray of int64, shape (2,)
-        How many links the laws may use have received something; 1 once the links in use
-        are all of them for good (no range): ``act_*`` is then not rebuilt.
-    eta : ndarray, shape (M,)
-        The :math:`\\eta` each UAV flies (the leader's its own).
-    eta_stamp : ndarray, shape (M,)
-        Its stamp: the step the leader computed it (-1: the start value 1).
-    act_indptr : ndarray of int64, shape (M+1,)
-        The links the laws use at the step, CSR by receiver.
-    act_senders : ndarray of int64, shape (E,)
-        Their senders.
-    act_links : ndarray of int64, shape (E,)
-        Their link numbers (the rows of ``recv_q`` and ``recv_v``).
-    parent : ndarray of int64, shape (M,)
-        Union-find work of :func:`connected_fresh`.
-    draws : ndarray, shape (E, 3)
-        The uniforms of each link's message of the sending step (:func:`draw_messages`).
+    floats : ndarray of float64
+        :attr:`history`, :attr:`recv_q`, :attr:`recv_v`, :attr:`eta`, :attr:`eta_stamp`,
+        :attr:`draws`.
+    ints : ndarray of int64
+        M, E, D + 1, the uniforms per kind, then :attr:`pending`, :attr:`stamp`,
+        :attr:`tally`, :attr:`act_indptr`, :attr:`act_senders`, :attr:`act_links`,
+        :attr:`parent`.
+    flags : ndarray of int8
+        :attr:`channel`, :attr:`near`.
     """
 
-    history: np.ndarray
-    pending: np.ndarray
-    recv_q: np.ndarray
-    recv_v: np.ndarray
-    stamp: np.ndarray
-    channel: np.ndarray
-    tally: np.ndarray
-    eta: np.ndarray
-    eta_stamp: np.ndarray
-    act_indptr: np.ndarray
-    act_senders: np.ndarray
-    act_links: np.ndarray
-    parent: np.ndarray
-    draws: np.ndarray
+    floats: np.ndarray
+    ints: np.ndarray
+    flags: np.ndarray
+
+    def _at(self) -> tuple[int, ...]:
+        m, e, d, w = (int(x) for x in self.ints[:STATE_HEADER])
+        return (m, e, d, w, *state_layout(m, e, d, w))
+
+    @property
+    def history(self) -> np.ndarray:
+        """Each UAV's broadcast state at the last D+1 sending steps, in slot
+        ``step % (D+1)``: x, y, vx, vy, its :math:`\\eta` and that value's stamp; shape
+        (D+1, M, 6)."""
+        m, _, d, _, *at = self._at()
+        return self.floats[at[0] : at[1]].reshape(d, m, 6)
+
+    @property
+    def recv_q(self) -> np.ndarray:
+        """Per link, the last received position, m; shape (E, 2)."""
+        _, e, _, _, *at = self._at()
+        return self.floats[at[1] : at[2]].reshape(e, 2)
+
+    @property
+    def recv_v(self) -> np.ndarray:
+        """Per link, the last received velocity, m/s; shape (E, 2)."""
+        _, e, _, _, *at = self._at()
+        return self.floats[at[2] : at[3]].reshape(e, 2)
+
+    @property
+    def eta(self) -> np.ndarray:
+        """The :math:`\\eta` each UAV flies (the leader's its own), shape (M,)."""
+        at = self._at()[4:]
+        return self.floats[at[3] : at[4]]
+
+    @property
+    def eta_stamp(self) -> np.ndarray:
+        """Its stamp: the step the leader computed it (-1: the start value 1), shape (M,)."""
+        at = self._at()[4:]
+        return self.floats[at[4] : at[5]]
+
+    @property
+    def draws(self) -> np.ndarray:
+        """The uniforms of the messages of ``batch`` sending steps, one row per kind (loss,
+        delay, channel), two columns per pair of UAVs and step (:func:`draw_messages`;
+        link ``e``'s of the ``b``-th step of the batch in column ``2 b P +
+        model.pair_slot[e]``); shape (3, 2 batch P)."""
+        at = self._at()[4:]
+        return self.floats[at[5] : at[6]].reshape(3, -1)
+
+    @property
+    def pending(self) -> np.ndarray:
+        """Per link, the send step of the newest message arriving at each step (slot
+        ``arrival % (D+1)``), -1 for none; shape (E, D+1)."""
+        _, e, d, _, *at = self._at()
+        return self.ints[at[7] : at[8]].reshape(e, d)
+
+    @property
+    def stamp(self) -> np.ndarray:
+        """The send step of each link's last received message, -1 before any; shape (E,)."""
+        at = self._at()[4:]
+        return self.ints[at[8] : at[9]]
+
+    @property
+    def tally(self) -> np.ndarray:
+        """How many links the laws may use have received something; 1 once the links in
+        use are all of them for good (no range: ``act_*`` is then not rebuilt); the batch
+        in :attr:`draws` (its first sending step over the period, a multiple of
+        ``batch``; -1: none yet). Shape (3,)."""
+        at = self._at()[4:]
+        return self.ints[at[9] : at[10]]
+
+    @property
+    def act_indptr(self) -> np.ndarray:
+        """The links the laws use at the step, CSR by receiver; shape (M+1,)."""
+        at = self._at()[4:]
+        return self.ints[at[10] : at[11]]
+
+    @property
+    def act_senders(self) -> np.ndarray:
+        """Their senders, shape (E,) (the first ``act_indptr[M]``)."""
+        at = self._at()[4:]
+        return self.ints[at[11] : at[12]]
+
+    @property
+    def act_links(self) -> np.ndarray:
+        """Their link numbers (the rows of ``recv_q`` and ``recv_v``), shape (E,)."""
+        at = self._at()[4:]
+        return self.ints[at[12] : at[13]]
+
+    @property
+    def parent(self) -> np.ndarray:
+        """Union-find work of :func:`connected_fresh`, shape (M,)."""
+        at = self._at()[4:]
+        return self.ints[at[13] : at[14]]
+
+    @property
+    def channel(self) -> np.ndarray:
+        """The Gilbert-Elliott state of each link: -1 before the first message, 0 good,
+        1 bad; int8, shape (E,)."""
+        at = self._at()[4:]
+        return self.flags[at[15] : at[16]]
+
+    @property
+    def near(self) -> np.ndarray:
+        """Whether each link is within range at the step (with a range only); int8,
+        shape (E,)."""
+        at = self._at()[4:]
+        return self.flags[at[16] : at[17]]
 
 
 @njit(cache=True)
 def link_state(model, m_uavs):
     """A run's link state at the start (:class:`LinkState`): nothing received, every
     UAV at :math:`\\eta = 1`."""
-    n_links = model.senders.shape[0]
-    return LinkState(
-        np.zeros((model.depth, m_uavs, 6)), np.full((n_links, model.depth), -1, np.int64),
-        np.zeros((n_links, 2)), np.zeros((n_links, 2)), np.full(n_links, -1, np.int64),
-        np.full(n_links, -1, np.int8), np.zeros(2, np.int64), np.ones(m_uavs),
-        np.full(m_uavs, -1.0), np.zeros(m_uavs + 1, np.int64), np.zeros(n_links, np.int64),
-        np.zeros(n_links, np.int64), np.zeros(m_uavs, np.int64), np.ones((n_links, 3)),
-    )  # fmt: skip
+    e, d, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
+    at = state_layout(m_uavs, e, d, w)
+    floats = np.zeros(at[6])
+    floats[at[3] : at[4]] = 1.0  # eta
+    floats[at[4] : at[5]] = -1.0  # eta_stamp
+    floats[at[5] : at[6]] = 1.0  # draws
+    ints = np.zeros(at[14], np.int64)
+    ints[0], ints[1], ints[2], ints[3] = m_uavs, e, d, w
+    ints[at[7] : at[9]] = -1  # pending, stamp
+    ints[at[9] + 2] = -1  # no batch of draws yet
+    flags = np.ones(at[17], np.int8)
+    flags[at[15] : at[16]] = -1  # channel
+    return LinkState(floats, ints, flags)
 
 
 def neighbour_tables(
@@ -642,7 +879,7 @@ def neighbour_tables(
         without links ``(None, indptr, indices, indices, q, v, None, 0, 0, None)`` (each
         UAV reads its neighbours' state of the step, all at one eta); with links a new
         :class:`LinkState`, its ``act_indptr``, ``act_senders``, ``act_links``, ``recv_q``,
-        ``recv_v`` and ``eta``, and the key's words and the series of ``lio``.
+        ``recv_v`` and ``eta`` (views), and the key's words and the series of ``lio``.
         Compiled kernels get the arrays of the exact types of either case (a Numba
         ``overload``): a mission without links compiles none of the link layer.
     """
@@ -664,8 +901,12 @@ def _neighbour_tables_kernel(links, lio, m_uavs, indptr, indices, q, v):
     def tables(links, lio, m_uavs, indptr, indices, q, v):
         st = link_state(links, m_uavs)
         key, series = lio
-        return (st, st.act_indptr, st.act_senders, st.act_links, st.recv_q, st.recv_v, st.eta,
-                key[0], key[1], series)  # fmt: skip
+        e = links.n_links
+        at = state_layout(m_uavs, e, links.depth, 2 * links.batch * links.n_pairs)
+        fl, it = st.floats, st.ints
+        return (st, it[at[10] : at[11]], it[at[11] : at[12]], it[at[12] : at[13]],
+                fl[at[1] : at[2]].reshape(e, 2), fl[at[2] : at[3]].reshape(e, 2),
+                fl[at[3] : at[4]], key[0], key[1], series)  # fmt: skip
 
     return tables
 
@@ -694,21 +935,37 @@ def link_uniform(k0, k1, step, sender, receiver, kind):
 
 
 @leaf
-def draw_messages(k, k0, k1, model, draws):
-    """The uniforms of every candidate link's message of step ``k`` into ``draws`` (E, 3):
-    its loss, delay and channel uniforms (:func:`pair_draws`, one block per pair of UAVs
-    and kind, only the kinds the model needs: none for perfect links). One pass, apart
-    from the messages' fates: the Philox blocks of a step are then computed back to back."""
-    kinds = (model.loss > 0.0 or model.gilbert, model.span > 1, model.gilbert)
-    for kind in range(3):
-        if not kinds[kind]:
-            continue
-        for i in range(model.pair_lo.shape[0]):
-            a, b = pair_draws(k0, k1, k, model.pair_lo[i], model.pair_hi[i], kind)
-            if model.pair_fwd[i] >= 0:
-                draws[model.pair_fwd[i], kind] = a
-            if model.pair_back[i] >= 0:
-                draws[model.pair_back[i], kind] = b
+def draw_kind(base, k0, k1, lo, hi, step, kind, row):
+    """The uniforms of kind ``kind`` of the blocks ``i`` (:func:`pair_draws` of the pair
+    ``lo[i] < hi[i]`` at the step ``base + step[i]``) into ``row[2 i]`` and ``row[2 i + 1]``.
+    A plain loop over independent blocks: the compiler computes several at once (SIMD)."""
+    for i in range(lo.shape[0]):
+        a, b = pair_draws(k0, k1, base + step[i], lo[i], hi[i], kind)
+        row[2 * i] = a
+        row[2 * i + 1] = b
+
+
+@leaf
+def draw_messages(k, k0, k1, model, st):
+    """The uniforms of the messages of the ``model.batch`` sending steps from ``k`` into
+    :attr:`LinkState.draws`: for each kind the model needs (loss, delay, channel; none
+    for perfect links), each step ``b`` of the batch and each pair of UAVs ``i`` its block
+    (:func:`pair_draws`), the first uniform in column ``2 (b P + i)``, the second in the
+    next (:data:`DRAW_BATCH`; the draws are functions of the counter, so drawing ahead
+    changes none)."""
+    m, e, p, b = model.n_uavs, model.n_links, model.n_pairs, model.batch
+    part = model_layout(m, e, p, b)
+    lo = model.table[part[9] : part[10]]
+    hi = model.table[part[10] : part[11]]
+    step = model.table[part[11] : part[12]]
+    w = 2 * b * p
+    at = state_layout(m, e, model.depth, w)
+    if model.loss > 0.0 or model.gilbert:
+        draw_kind(k, k0, k1, lo, hi, step, LOSS_DRAW, st.floats[at[5] : at[5] + w])
+    if model.span > 1:
+        draw_kind(k, k0, k1, lo, hi, step, DELAY_DRAW, st.floats[at[5] + w : at[5] + 2 * w])
+    if model.gilbert:
+        draw_kind(k, k0, k1, lo, hi, step, CHANNEL_DRAW, st.floats[at[5] + 2 * w : at[6]])
 
 
 @njit(cache=True, inline="always")
@@ -738,146 +995,257 @@ def message_fate(u_loss, u_delay, u_channel, link, model, channel):
 
 
 @njit(cache=True, inline="always")
-def receive(link, sender, receiver, leader, step, h, law, history, recv_q, recv_v, stamp, eta,
-            eta_stamp):  # fmt: skip
-    """Link ``link`` (``sender`` to ``receiver``) receives the message sent at ``step``
-    (slot ``h`` of the history; the arrays of :class:`LinkState`): its copy of the sender's
-    state (if the laws use the link, ``law``), and, if the message's :math:`\\eta` is
-    fresher than the receiver's (and the receiver is not the leader), that
-    :math:`\\eta`."""
-    if law:
-        recv_q[link, 0] = history[h, sender, 0]
-        recv_q[link, 1] = history[h, sender, 1]
-        recv_v[link, 0] = history[h, sender, 2]
-        recv_v[link, 1] = history[h, sender, 3]
-    stamp[link] = step
-    if receiver != leader and history[h, sender, 5] > eta_stamp[receiver]:
-        eta[receiver] = history[h, sender, 4]
-        eta_stamp[receiver] = history[h, sender, 5]
-
-
-@leaf
-def broadcast(k, q, v, eta, leader, st):
+def broadcast(k, q, v, eta, leader, model, st):
     """Step ``k`` is a sending step: every UAV's broadcast state into the history (its
     position, velocity, the :math:`\\eta` it knows and its stamp; the leader's :math:`\\eta`
     is ``eta``, stamped ``k``)."""
-    slot = k % st.history.shape[0]
-    history, etas, stamps = st.history, st.eta, st.eta_stamp
-    for p in range(q.shape[0]):
-        history[slot, p, 0] = q[p, 0]
-        history[slot, p, 1] = q[p, 1]
-        history[slot, p, 2] = v[p, 0]
-        history[slot, p, 3] = v[p, 1]
-        history[slot, p, 4] = eta if p == leader else etas[p]
-        history[slot, p, 5] = k if p == leader else stamps[p]
+    m_uavs = q.shape[0]
+    at = state_layout(m_uavs, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    fl = st.floats
+    base = (k % model.depth) * m_uavs * 6
+    for p in range(m_uavs):
+        h = base + 6 * p
+        fl[_U(h)] = q[p, 0]
+        fl[_U(h + 1)] = q[p, 1]
+        fl[_U(h + 2)] = v[p, 0]
+        fl[_U(h + 3)] = v[p, 1]
+        fl[_U(h + 4)] = fl[_U(at[3] + p)]
+        fl[_U(h + 5)] = fl[_U(at[4] + p)]
+    fl[_U(base + 6 * leader + 4)] = eta
+    fl[_U(base + 6 * leader + 5)] = k
 
 
 @leaf
+def in_range(q, model, st):
+    """``near[e]`` (:attr:`LinkState.near`): whether the receiver and the sender of link
+    ``e`` are within range at the positions ``q`` (the distance squared at most
+    ``model.range2``)."""
+    n = model.n_links
+    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
+    tab, flags, range2 = model.table, st.flags, model.range2
+    for e in range(n):
+        r, p = tab[_U(part[2] + e)], tab[_U(part[1] + e)]
+        dx, dy = q[r, 0] - q[p, 0], q[r, 1] - q[p, 1]
+        flags[_U(n + e)] = dx * dx + dy * dy <= range2
+
+
+@leaf
+def send_gilbert(k, model, st):
+    """:func:`send_messages` with the Gilbert-Elliott model (:func:`message_fate` moves
+    each link's channel state). Returns ``(sent, delivered)``."""
+    n, depth, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
+    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
+    at = state_layout(model.n_uavs, n, depth, w)
+    tab, fl, it, flags = model.table, st.floats, st.ints, st.flags
+    now = k % depth
+    ranged = model.range2 < math.inf
+    draws = at[5] + 2 * model.n_pairs * (k // model.period - it[_U(at[9] + 2)])
+    sent = delivered = 0
+    for e in range(n):
+        if ranged and not flags[_U(n + e)]:
+            continue
+        sent += 1
+        j = draws + tab[_U(part[4] + e)]
+        ok, delay = message_fate(fl[_U(j)], fl[_U(j + w)], fl[_U(j + 2 * w)], e, model, flags)
+        if ok:  # (slots modulo depth without a division: delay < depth)
+            delivered += 1
+            slot = now + delay - depth if now + delay >= depth else now + delay
+            i = at[7] + e * depth + slot
+            it[_U(i)] = max(it[_U(i)], k)
+    return sent, delivered
+
+
+@njit(cache=True, inline="always")
+def send_messages(k, model, st):
+    """The fates of the messages of the sending step ``k`` (:func:`message_fate`; with
+    Gilbert-Elliott :func:`send_gilbert`): each delivered one goes to its link's pending
+    slot of its arrival step (the newest send step wins). Returns ``(sent, delivered)``.
+    Independent losses take the law of :func:`message_fate` without a branch on the
+    draws (the messages are lost at random: a branch would be mispredicted)."""
+    if model.gilbert:
+        return send_gilbert(k, model, st)
+    n, depth, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
+    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
+    at = state_layout(model.n_uavs, n, depth, w)
+    tab, fl, it, flags = model.table, st.floats, st.ints, st.flags
+    now = k % depth
+    ranged = model.range2 < math.inf
+    draws = at[5] + 2 * model.n_pairs * (k // model.period - it[_U(at[9] + 2)])
+    loss, span, shortest = model.loss, model.span, model.delay
+    sent = delivered = 0
+    for e in range(n):
+        j = draws + tab[_U(part[4] + e)]
+        on = not ranged or flags[_U(n + e)] != 0
+        ok = on and fl[_U(j)] > loss
+        delay = shortest + int((1.0 - fl[_U(j + w)]) * span) if span > 1 else shortest
+        slot = now + delay - depth if now + delay >= depth else now + delay
+        i = at[7] + e * depth + slot
+        it[_U(i)] = max(it[_U(i)], k if ok else -1)
+        sent += on
+        delivered += ok
+    return sent, delivered
+
+
+@njit(cache=True, inline="always")
+def arrivals(k, leader, model, st):
+    """The messages arriving at step ``k`` (the pending slot of ``k``): each one newer than
+    its link's last is received: its copy of the sender's state (if the laws use the link)
+    and its stamp, and, if the message's :math:`\\eta` is fresher than the receiver's (and
+    the receiver is not the leader), that :math:`\\eta`. Counts in the tally the links the
+    laws use that receive their first message. Returns the sum and the smallest of the
+    stamps of the links the laws may use (``k`` for none; the ages of the links in use
+    once they are all of them, :func:`link_ages`)."""
+    m, n, depth = model.n_uavs, model.n_links, model.depth
+    part = model_layout(m, n, model.n_pairs, model.batch)
+    at = state_layout(m, n, depth, 2 * model.batch * model.n_pairs)
+    tab, fl, it = model.table, st.floats, st.ints
+    now = k % depth
+    first = total = 0
+    newest_of_oldest = k
+    for e in range(n):
+        i = at[7] + e * depth + now
+        s = it[_U(i)]
+        it[_U(i)] = -1
+        old = it[_U(at[8] + e)]
+        law = tab[_U(part[3] + e)]
+        if s > old:  # (none pending: -1)
+            it[_U(at[8] + e)] = s
+            h = now - (k - s) + depth if now < k - s else now - (k - s)
+            row = (h * m + tab[_U(part[1] + e)]) * 6
+            if law:
+                first += old < 0
+                fl[_U(at[1] + 2 * e)] = fl[_U(row)]
+                fl[_U(at[1] + 2 * e + 1)] = fl[_U(row + 1)]
+                fl[_U(at[2] + 2 * e)] = fl[_U(row + 2)]
+                fl[_U(at[2] + 2 * e + 1)] = fl[_U(row + 3)]
+            r = tab[_U(part[2] + e)]
+            if r != leader and fl[_U(row + 5)] > fl[_U(at[4] + r)]:
+                fl[_U(at[3] + r)] = fl[_U(row + 4)]
+                fl[_U(at[4] + r)] = fl[_U(row + 5)]
+            old = s
+        total += old if law else 0
+        newest_of_oldest = min(newest_of_oldest, old if law else k)
+    it[_U(at[9])] += first
+    return total, newest_of_oldest
+
+
+@leaf
+def links_in_use(model, st):
+    """The links the laws use at the step (``act_*``, CSR by receiver, in the order of the
+    candidates): the graph's, within range, that have received something."""
+    m, n = model.n_uavs, model.n_links
+    part = model_layout(m, n, model.n_pairs, model.batch)
+    at = state_layout(m, n, model.depth, 2 * model.batch * model.n_pairs)
+    tab, it, flags = model.table, st.ints, st.flags
+    ranged = model.range2 < math.inf
+    count = 0
+    for r in range(m):
+        it[_U(at[10] + r)] = count
+        for e in range(tab[_U(r)], tab[_U(r + 1)]):
+            if (tab[_U(part[3] + e)] and it[_U(at[8] + e)] >= 0
+                    and (not ranged or flags[_U(n + e)])):  # fmt: skip
+                it[_U(at[11] + count)] = tab[_U(part[1] + e)]
+                it[_U(at[12] + count)] = e
+                count += 1
+    it[_U(at[10] + m)] = count
+
+
+@njit(cache=True, inline="always")
 def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
     """The messages of step ``k`` (:class:`LinkState` ``st``, in place): the broadcast (if
-    ``k`` is a sending step) and, link by link, the range test, each sent message's fate
-    (:func:`message_fate`) and the arrivals of the step (:func:`receive`), and the links
-    the laws use (the graph's, in range, something received: ``st.act_*``, in the order
-    of the candidates; without a range they are all of them once each has received a
-    message, and are then kept); then the step's row ``k`` of ``series``
-    (:data:`LINK_SERIES`, :func:`link_series`). ``eta`` is the leader's."""
-    depth = model.depth
-    sending = k % model.period == 0
-    if sending:
-        broadcast(k, q, v, eta, leader, st)
-        draw_messages(k, k0, k1, model, st.draws)
-    st.eta[leader] = eta
-    now = k % depth
-    indptr, senders, law, range2 = model.indptr, model.senders, model.law, model.range2
-    pending, channel, stamp, tally, draws = st.pending, st.channel, st.stamp, st.tally, st.draws
-    history, recv_q, recv_v = st.history, st.recv_q, st.recv_v
-    etas, eta_stamp = st.eta, st.eta_stamp
-    act_indptr, act_senders, act_links = st.act_indptr, st.act_senders, st.act_links
-    ranged = range2 < math.inf
-    rebuild = ranged or tally[1] == 0
-    sent = delivered = count = 0
-    for m in range(q.shape[0]):
-        if rebuild:
-            act_indptr[m] = count
-        for e in range(indptr[m], indptr[m + 1]):
-            p = senders[e]
-            near = True
-            if ranged:
-                dx, dy = q[m, 0] - q[p, 0], q[m, 1] - q[p, 1]
-                near = dx * dx + dy * dy <= range2
-            if sending and near:
-                sent += 1
-                ok, delay = message_fate(draws[e, 0], draws[e, 1], draws[e, 2], e, model,
-                                         channel)  # fmt: skip
-                if ok:  # (slots modulo depth without a division: delay < depth)
-                    delivered += 1
-                    slot = now + delay - depth if now + delay >= depth else now + delay
-                    pending[e, slot] = max(pending[e, slot], k)
-            s = pending[e, now]
-            if s >= 0:
-                pending[e, now] = -1
-                if s > stamp[e]:
-                    tally[0] += stamp[e] < 0 and law[e]
-                    h = now - (k - s) + depth if now < k - s else now - (k - s)
-                    receive(e, p, m, leader, s, h, law[e], history, recv_q, recv_v, stamp,
-                            etas, eta_stamp)  # fmt: skip
-            if rebuild and law[e] and near and stamp[e] >= 0:  # a link the laws use
-                act_senders[count] = p
-                act_links[count] = e
-                count += 1
-    if rebuild:
-        act_indptr[q.shape[0]] = count
-        if not ranged and tally[0] == model.law_links:  # every link in use, for good
-            tally[1] = 1
+    ``k`` is a sending step), the range test (:func:`in_range`), each sent message's fate
+    (:func:`send_messages`), the arrivals of the step (:func:`arrivals`) and the links the
+    laws use (:func:`links_in_use`; without a range they are all of them once each has
+    received a message, and are then kept, not rebuilt); then the step's row ``k`` of
+    ``series`` (:data:`LINK_SERIES`, :func:`link_series`). ``eta`` is the leader's.
+
+    Inlined into the compiled mission (its code then shares the mission's instruction
+    cache lines instead of starting a page of its own); the work of the rare cases (a
+    range, Gilbert-Elliott, the links in use changing, a stale link) is in functions of
+    their own."""
+    at = state_layout(model.n_uavs, model.n_links, model.depth,
+                      2 * model.batch * model.n_pairs)  # fmt: skip
+    it = st.ints
+    ranged = model.range2 < math.inf
+    if ranged:
+        in_range(q, model, st)
+    sent = delivered = 0
+    if k % model.period == 0:
+        broadcast(k, q, v, eta, leader, model, st)
+        turn = k // model.period
+        first = turn - turn % model.batch  # the batch of this sending step
+        if first != it[_U(at[9] + 2)]:
+            it[_U(at[9] + 2)] = first
+            draw_messages(first * model.period, k0, k1, model, st)
+        sent, delivered = send_messages(k, model, st)
+    st.floats[_U(at[3] + leader)] = eta
+    kept = not ranged and it[_U(at[9] + 1)] == 1  # the links in use: every one, for good
+    total, newest_of_oldest = arrivals(k, leader, model, st)
     series[k, 0] = sent
     series[k, 1] = delivered
+    if kept:
+        link_ages(k, model.law_links, total, k - newest_of_oldest, model, st, series)
+        return
+    links_in_use(model, st)
+    if not ranged and it[_U(at[9])] == model.law_links:
+        it[_U(at[9] + 1)] = 1
     link_series(k, model, st, series)
+
+
+@njit(cache=True, inline="always")
+def link_ages(k, count, total, oldest, model, st, series):
+    """Row ``k`` of ``series``, columns 2 to 4, from the links in use at the step: their
+    number, the sum of their stamps and the largest age, steps: the mean and largest age
+    (s; NaN without any), and 1.0 if the communication graph (those links at most
+    ``model.stale`` steps old) is connected, else 0.0 (every link fresh: the whole graph,
+    connected by the scenario checks; else :func:`connected_fresh`)."""
+    series[k, 2] = (count * k - total) / count * model.dt if count else math.nan
+    series[k, 3] = oldest * model.dt if count else math.nan
+    whole = count == model.law_links and oldest <= model.stale
+    series[k, 4] = 1.0 if whole or connected_fresh(k, model, st) else 0.0
 
 
 @leaf
 def link_series(k, model, st, series):
-    """Row ``k`` of ``series`` after the messages of step ``k``: (its columns 2 to 4) the
-    mean and largest age of the links in use (s; NaN without any), and 1.0 if the
-    communication graph (those links at most ``model.stale`` steps old) is connected, else
-    0.0 (every link fresh: the whole graph, connected by the scenario checks; else
-    :func:`connected_fresh`)."""
-    count = st.act_indptr[st.act_indptr.shape[0] - 1]
-    total = fresh = 0
-    oldest = -1
+    """Row ``k`` of ``series`` after the messages of step ``k``, columns 2 to 4
+    (:func:`link_ages`), from the links in use (``act_*``)."""
+    m = model.n_uavs
+    at = state_layout(m, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    it = st.ints
+    count = it[_U(at[10] + m)]
+    total = 0
+    newest_of_oldest = k
     for j in range(count):
-        age = k - st.stamp[st.act_links[j]]
-        total += age
-        oldest = max(oldest, age)
-        fresh += age <= model.stale
-    series[k, 2] = total / count * model.dt if count else math.nan
-    series[k, 3] = oldest * model.dt if count else math.nan
-    whole = fresh == model.law_links or connected_fresh(k, model.stale, st)
-    series[k, 4] = 1.0 if whole else 0.0
+        s = it[_U(at[8] + it[_U(at[12] + j)])]
+        total += s
+        newest_of_oldest = min(newest_of_oldest, s)
+    link_ages(k, count, total, k - newest_of_oldest, model, st, series)
 
 
 @leaf
-def connected_fresh(k, stale, st):
+def connected_fresh(k, model, st):
     """Whether the communication graph of step ``k`` is connected: the undirected graph on
-    the UAVs whose edges are the links in use (``st.act_*``) whose last message is at most
-    ``stale`` steps old (union-find in ``st.parent``)."""
-    parent = st.parent
-    n = parent.shape[0]
+    the UAVs whose edges are the links in use (``act_*``) whose last message is at most
+    ``model.stale`` steps old (union-find in :attr:`LinkState.parent`)."""
+    n = model.n_uavs
+    at = state_layout(n, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    it, stale, parent = st.ints, model.stale, at[13]
     for i in range(n):
-        parent[i] = i
+        it[_U(parent + i)] = i
     parts = n
     for m in range(n):
-        for j in range(st.act_indptr[m], st.act_indptr[m + 1]):
-            if k - st.stamp[st.act_links[j]] > stale:
+        for j in range(it[_U(at[10] + m)], it[_U(at[10] + m + 1)]):
+            if k - it[_U(at[8] + it[_U(at[12] + j)])] > stale:
                 continue
-            a, b = m, st.act_senders[j]
-            while parent[a] != a:
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            while parent[b] != b:
-                parent[b] = parent[parent[b]]
-                b = parent[b]
+            a, b = m, it[_U(at[11] + j)]
+            while it[_U(parent + a)] != a:
+                it[_U(parent + a)] = it[_U(parent + it[_U(parent + a)])]
+                a = it[_U(parent + a)]
+            while it[_U(parent + b)] != b:
+                it[_U(parent + b)] = it[_U(parent + it[_U(parent + b)])]
+                b = it[_U(parent + b)]
             if a != b:
-                parent[a] = b
+                it[_U(parent + a)] = b
                 parts -= 1
     return parts == 1
 
