@@ -397,8 +397,7 @@ class _Batch:
         self.estimate = np.full((n_runs, k1, 2), np.nan) if est else None
         self.estimate_variance = np.full((n_runs, k1), np.nan) if est else None
         self.fim_sum = np.zeros((k1, 2, 2))
-        # (series first: each is a contiguous (B, K+1) block, the result's field as it is)
-        self.links = None if sc.links is None else np.empty((len(LINK_SERIES), n_runs, k1))
+        self.links = None if sc.links is None else np.empty((n_runs, k1, len(LINK_SERIES)))
 
 
 class _ChunkBuffers:
@@ -542,7 +541,7 @@ def _run_chunk(
     if links is not None and batch.links is not None:
         for i, s in enumerate(seeds):
             buf.link_keys[i] = stream_key(int(s), LINKS)
-        link_io = (buf.link_keys[:n], batch.links[:, lo:hi].transpose(1, 2, 0))
+        link_io = (buf.link_keys[:n], batch.links[lo:hi])
     x0 = buf.x0[:n]
     x0[:, :2] = truth[:, 0, :2] + np.asarray(sc.estimation.prior_offset)
     batch.eta[lo:hi, 0] = 1.0
@@ -954,11 +953,11 @@ def simulate(
 
 
 def _link_fields(series: np.ndarray | None) -> dict[str, np.ndarray]:
-    """The link series of a batch, shape (5, B, K+1), as the result's fields ``link_<name>``
-    (:data:`crlbswarm.links.LINK_SERIES`; views, not copies); none without links."""
+    """The link series of a batch as the result's fields ``link_<name>``
+    (:data:`crlbswarm.links.LINK_SERIES`); none without links."""
     if series is None:
         return {}
-    return {f"link_{n}": series[i] for i, n in enumerate(LINK_SERIES)}
+    return {f"link_{n}": np.ascontiguousarray(series[..., i]) for i, n in enumerate(LINK_SERIES)}
 
 
 def _group_arguments(
