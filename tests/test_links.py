@@ -213,7 +213,7 @@ def test_message_process_matches_a_plain_python_rerun(links):
     eta = rng.uniform(0.3, 1.0, k_steps)
     want = _reference_messages(model, seed, q, v, eta, leader, k_steps)
     st = link_state(model, m_uavs)
-    series = np.zeros((k_steps, 5))
+    series = np.zeros((5, k_steps))
     k0, k1 = stream_key(seed, LINKS)
     receiver = np.repeat(np.arange(m_uavs), np.diff(model.indptr))
     for k in range(k_steps):
@@ -222,7 +222,7 @@ def test_message_process_matches_a_plain_python_rerun(links):
         stamp, etas, sent, delivered = want[k]
         assert st.stamp.tolist() == stamp, k
         assert st.eta.tolist() == etas, k
-        assert series[k, :2].tolist() == [sent, delivered], k
+        assert series[:2, k].tolist() == [sent, delivered], k
         for e in np.flatnonzero((st.stamp >= 0) & model.law):  # (the others: eta only)
             s, p = st.stamp[e], model.senders[e]
             assert st.recv_q[e].tolist() == q[s, p].tolist()
@@ -234,10 +234,10 @@ def test_message_process_matches_a_plain_python_rerun(links):
         assert np.diff(st.act_indptr).tolist() == np.bincount(receiver[used], minlength=6).tolist()
         ages = k - st.stamp[used]
         if used.size:
-            assert series[k, 2] == pytest.approx(ages.mean() * dt, rel=1e-12)
-            assert series[k, 3] == pytest.approx(ages.max() * dt, rel=1e-12)
+            assert series[2, k] == pytest.approx(ages.mean() * dt, rel=1e-12)
+            assert series[3, k] == pytest.approx(ages.max() * dt, rel=1e-12)
         fresh = used[ages <= model.stale]
-        assert series[k, 4] == _connected(m_uavs, receiver[fresh], model.senders[fresh])
+        assert series[4, k] == _connected(m_uavs, receiver[fresh], model.senders[fresh])
 
 
 def _connected(n: int, a: np.ndarray, b: np.ndarray) -> float:

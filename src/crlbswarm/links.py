@@ -860,7 +860,7 @@ def neighbour_tables(
     links : LinkModel or None
         The link model, or None for perfect links.
     lio : tuple or None
-        The run's link key, shape (2,), and series, shape (K+1, 5) (None with ``links``).
+        The run's link key, shape (2,), and series, shape (5, K+1) (None with ``links``).
     m_uavs : int
         Number of UAVs.
     indptr : ndarray of int64
@@ -938,11 +938,18 @@ def link_uniform(k0, k1, step, sender, receiver, kind):
 def draw_kind(base, k0, k1, lo, hi, step, kind, row):
     """The uniforms of kind ``kind`` of the blocks ``i`` (:func:`pair_draws` of the pair
     ``lo[i] < hi[i]`` at the step ``base + step[i]``) into ``row[2 i]`` and ``row[2 i + 1]``.
-    A plain loop over independent blocks: the compiler computes several at once (SIMD)."""
-    for i in range(lo.shape[0]):
+
+    One block at a time, in scalar code: the compiler would otherwise compute several at
+    once with wide vector multiplies (AVX-512), whose use lowers the core's clock for
+    a while after (the whole mission then runs slower, measured: about 5 % of a batch of
+    paper missions). The loop's step depends on a uniform (always in (0, 1], so it is
+    always 1): the compiler cannot count the iterations, and keeps the loop scalar."""
+    i, n = 0, lo.shape[0]
+    while i < n:
         a, b = pair_draws(k0, k1, base + step[i], lo[i], hi[i], kind)
         row[2 * i] = a
         row[2 * i + 1] = b
+        i += 1 if a > 0.0 else n
 
 
 @leaf
@@ -1150,19 +1157,19 @@ def links_in_use(model, st):
     it[_U(at[10] + m)] = count
 
 
-@njit(cache=True, inline="always")
+@leaf
 def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
     """The messages of step ``k`` (:class:`LinkState` ``st``, in place): the broadcast (if
     ``k`` is a sending step), the range test (:func:`in_range`), each sent message's fate
     (:func:`send_messages`), the arrivals of the step (:func:`arrivals`) and the links the
     laws use (:func:`links_in_use`; without a range they are all of them once each has
-    received a message, and are then kept, not rebuilt); then the step's row ``k`` of
+    received a message, and are then kept, not rebuilt); then the step's column ``k`` of
     ``series`` (:data:`LINK_SERIES`, :func:`link_series`). ``eta`` is the leader's.
 
-    Inlined into the compiled mission (its code then shares the mission's instruction
-    cache lines instead of starting a page of its own); the work of the rare cases (a
-    range, Gilbert-Elliott, the links in use changing, a stale link) is in functions of
-    their own."""
+    A leaf kernel (no reference counts: inlined into the mission, each of its arrays
+    would be counted at every step); the work of the rare cases (a range,
+    Gilbert-Elliott, the links in use changing, a stale link) is in functions of their
+    own."""
     at = state_layout(model.n_uavs, model.n_links, model.depth,
                       2 * model.batch * model.n_pairs)  # fmt: skip
     it = st.ints
@@ -1181,8 +1188,8 @@ def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
     st.floats[_U(at[3] + leader)] = eta
     kept = not ranged and it[_U(at[9] + 1)] == 1  # the links in use: every one, for good
     total, newest_of_oldest = arrivals(k, leader, model, st)
-    series[k, 0] = sent
-    series[k, 1] = delivered
+    series[0, k] = sent
+    series[1, k] = delivered
     if kept:
         link_ages(k, model.law_links, total, k - newest_of_oldest, model, st, series)
         return
@@ -1194,20 +1201,20 @@ def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
 
 @njit(cache=True, inline="always")
 def link_ages(k, count, total, oldest, model, st, series):
-    """Row ``k`` of ``series``, columns 2 to 4, from the links in use at the step: their
+    """Column ``k`` of ``series``, rows 2 to 4, from the links in use at the step: their
     number, the sum of their stamps and the largest age, steps: the mean and largest age
     (s; NaN without any), and 1.0 if the communication graph (those links at most
     ``model.stale`` steps old) is connected, else 0.0 (every link fresh: the whole graph,
     connected by the scenario checks; else :func:`connected_fresh`)."""
-    series[k, 2] = (count * k - total) / count * model.dt if count else math.nan
-    series[k, 3] = oldest * model.dt if count else math.nan
+    series[2, k] = (count * k - total) / count * model.dt if count else math.nan
+    series[3, k] = oldest * model.dt if count else math.nan
     whole = count == model.law_links and oldest <= model.stale
-    series[k, 4] = 1.0 if whole or connected_fresh(k, model, st) else 0.0
+    series[4, k] = 1.0 if whole or connected_fresh(k, model, st) else 0.0
 
 
 @leaf
 def link_series(k, model, st, series):
-    """Row ``k`` of ``series`` after the messages of step ``k``, columns 2 to 4
+    """Column ``k`` of ``series`` after the messages of step ``k``, rows 2 to 4
     (:func:`link_ages`), from the links in use (``act_*``)."""
     m = model.n_uavs
     at = state_layout(m, model.n_links, model.depth, 2 * model.batch * model.n_pairs)

@@ -937,7 +937,7 @@ def run_batch(outs, inps, status, scene, index, ctl, rule, const, safe, route, t
     """Run every run of a batch in parallel threads (``outs``/``inps``: tuples of arrays
     with a leading run axis, in the field order of :class:`RunOutputs`/:class:`RunInputs`;
     ``safe``, ``route``, ``track``: the layers' markers of :func:`run_mission`; ``links``
-    its link model and ``link_io`` the runs' link keys (B, 2) and series (B, K+1, 5), or
+    its link model and ``link_io`` the runs' link keys (B, 2) and series (B, 5, K+1), or
     both None; ``frozen`` as there, the same for every run); ``status[b]`` receives
     :func:`run_mission`'s result."""
     for b in prange(status.shape[0]):

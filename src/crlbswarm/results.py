@@ -290,16 +290,16 @@ class MissionResult:
             return {}
         assert connected is not None
         total = sent.sum(axis=1)
-        used = np.isfinite(age)
-        steps = used.sum(axis=1)
+        steps = np.count_nonzero(age == age, axis=1)  # (NaN: no link in use at the step)
         with np.errstate(invalid="ignore", divide="ignore"):
             fraction = np.where(total > 0, delivered.sum(axis=1) / total, np.nan)
-            mean_age = np.where(steps > 0, np.where(used, age, 0.0).sum(axis=1) / steps, np.nan)
-        largest = np.where(used, oldest, -np.inf).max(axis=1)
+            mean_age = np.where(steps > 0, np.nansum(age, axis=1) / steps, np.nan)
+        # (fmax skips NaN; a run without any link in use keeps NaN)
+        largest = np.fmax.reduce(oldest, axis=1)
         return {
             "delivered_fraction": fraction,
             "mean_age_s": mean_age,
-            "max_age_s": np.where(steps > 0, largest, np.nan),
+            "max_age_s": largest,
             "disconnected_s": np.sum(connected == 0.0, axis=1) * self.scenario.time.step,
         }
 

@@ -397,7 +397,7 @@ class _Batch:
         self.estimate = np.full((n_runs, k1, 2), np.nan) if est else None
         self.estimate_variance = np.full((n_runs, k1), np.nan) if est else None
         self.fim_sum = np.zeros((k1, 2, 2))
-        self.links = None if sc.links is None else np.empty((n_runs, k1, len(LINK_SERIES)))
+        self.links = None if sc.links is None else np.empty((n_runs, len(LINK_SERIES), k1))
 
 
 class _ChunkBuffers:
@@ -763,11 +763,11 @@ def _run_phase(p: int, ph: Phase, args: _PhaseArguments, seeds: np.ndarray, lo: 
     link_io = None
     if args.links is not None:
         keys = np.array([stream_key(int(s), LINKS + p * PHASE_STREAMS) for s in seeds])
-        link_io = (keys.astype(np.int64), np.empty((n, ks + 1, len(LINK_SERIES))))
+        link_io = (keys.astype(np.int64), np.empty((n, len(LINK_SERIES), ks + 1)))
     run_batch(tuple(out), tuple(inp), status, *args.kernel, *layer_markers(ph.scenario),
               _crowd(ph.scenario), args.links, link_io, frozen)  # fmt: skip
     if link_io is not None and batch.links is not None:
-        batch.links[lo : lo + n, k0 : k1 + 1] = link_io[1]
+        batch.links[lo : lo + n, :, k0 : k1 + 1] = link_io[1]
     bad = np.flatnonzero(status >= 0)
     if bad.size:
         raise _diverged(ph.scenario, lo + int(bad[0]), int(seeds[bad[0]]),
@@ -822,7 +822,8 @@ def _hover(sc: Scenario, ph: Phase, args: _PhaseArguments, lo: int, hi: int, bat
     batch.cost[lo:hi, k0:k1] = 0.0
     if batch.links is not None:  # (no formation: no messages counted, no graph)
         none = {"sent": 0.0, "delivered": 0.0, "age": np.nan, "age_max": np.nan, "connected": 0.0}
-        batch.links[lo:hi, k0 + 1 : k1 + 1] = [none[name] for name in LINK_SERIES]
+        for i, name in enumerate(LINK_SERIES):
+            batch.links[lo:hi, i, k0 + 1 : k1 + 1] = none[name]
     for name in held:
         series = getattr(batch, name)
         series[lo:hi, steps] = series[lo:hi, k0 : k0 + 1]
@@ -954,10 +955,11 @@ def simulate(
 
 def _link_fields(series: np.ndarray | None) -> dict[str, np.ndarray]:
     """The link series of a batch as the result's fields ``link_<name>``
-    (:data:`crlbswarm.links.LINK_SERIES`); none without links."""
+    (:data:`crlbswarm.links.LINK_SERIES`): views of the batch's array, not copies; none
+    without links."""
     if series is None:
         return {}
-    return {f"link_{n}": np.ascontiguousarray(series[..., i]) for i, n in enumerate(LINK_SERIES)}
+    return {f"link_{n}": series[:, i] for i, n in enumerate(LINK_SERIES)}
 
 
 def _group_arguments(
