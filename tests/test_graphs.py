@@ -24,6 +24,7 @@ from crlbswarm import (
     consensus_step_limit,
     formation_step_limit,
 )
+from crlbswarm.graphs import auto_formation_step, delayed_step_factor
 
 SIZES = [2, 3, 4, 5, 6, 7, 10]
 
@@ -329,3 +330,45 @@ def test_ring_adjacency_is_the_ring_graph(n):
     np.testing.assert_array_equal(direct.indices, ref.indices)
     assert direct.indptr.dtype == ref.indptr.dtype
     assert direct.indices.dtype == ref.indices.dtype
+
+
+def _delayed_radius(a: float, d: int) -> float:
+    """Spectral radius of z_{k+1} = z_k - a z_{k-d}: its companion matrix's eigenvalues."""
+    comp = np.zeros((d + 1, d + 1))
+    comp[0, 0] += 1.0
+    comp[0, d] -= a
+    comp[1:, :-1] += np.eye(d)
+    return float(np.max(np.abs(np.linalg.eigvals(comp))))
+
+
+@pytest.mark.parametrize("d", [0, 1, 2, 3, 5, 10, 30])
+def test_delayed_step_factor_is_the_delayed_modes_stability_limit(d):
+    """Just below the factor the delayed mode decays, just above it grows (eigenvalues of
+    the companion matrix, computed here)."""
+    limit = delayed_step_factor(d)
+    assert _delayed_radius(limit * (1 - 1e-6), d) < 1.0
+    assert _delayed_radius(limit * (1 + 1e-6), d) > 1.0
+    assert _delayed_radius(0.5 * limit, d) < 1.0
+
+
+@pytest.mark.parametrize("kind", ["ring", "complete", "star", "path"])
+@pytest.mark.parametrize("n", [3, 6, 10])
+def test_auto_formation_step_halves_the_delayed_limit(kind, n):
+    """Without delay the "auto" gain is 1/lambda_max(L), the same bits as before delays; with
+    d steps every Laplacian mode, as a fully delayed mode, decays, at half the limit."""
+    graph = communication_graph(kind, n)
+    adj = Adjacency.from_graph(graph)
+    lam = np.linalg.eigvalsh(np.array(laplacian_by_hand(n, edge_set(graph))))
+    assert auto_formation_step(adj) == 0.5 * formation_step_limit(adj)
+    assert auto_formation_step(adj, 0) == auto_formation_step(adj)
+    for d in (1, 3, 10):
+        eps = auto_formation_step(adj, d)
+        assert eps == pytest.approx(math.sin(math.pi / (2 * (2 * d + 1))) / lam[-1], rel=1e-9)
+        assert max(_delayed_radius(eps * mode, d) for mode in lam[1:]) < 1.0
+        assert _delayed_radius(2.0 * eps * lam[-1] * (1 + 1e-6), d) > 1.0
+
+
+@pytest.mark.parametrize("delay", [-1, 1.5, "3", True])
+def test_auto_formation_step_refuses_a_bad_delay(delay):
+    with pytest.raises(ValueError, match="delay"):
+        auto_formation_step(Adjacency.from_graph(communication_graph("ring", 6)), delay)

@@ -18,10 +18,11 @@ import pytest
 
 import crlbswarm as cs
 from crlbswarm import control
-from crlbswarm.counter_rng import LINKS, stream_key, uniform_pair
+from crlbswarm.counter_rng import LINKS, philox4x32, stream_key
 from crlbswarm.errors import ScenarioError
 from crlbswarm.graphs import ring_adjacency
 from crlbswarm.links import (
+    DRAW_BATCH_PAIRS,
     LINK_SERIES,
     LinksConfig,
     candidate_links,
@@ -166,8 +167,10 @@ def _reference_messages(model, seed, q, v, eta, leader, k_steps):
                 sent += 1
                 lo, hi = min(p, m), max(p, m)
 
-                def u(kind, lo=lo, hi=hi, p=p, k=k):  # the pair's block, this direction's word
-                    return uniform_pair(k0, k1, k, lo, LINKS, 4 * hi + kind)[int(p > lo)]
+                def u(kind, lo=lo, hi=hi, p=p, k=k):  # the block of two turns, this turn's
+                    t = k // model.period  # and this direction's word, as 32-bit uniform
+                    words = philox4x32(t // 2, lo, LINKS, 4 * hi + kind, k0, k1)
+                    return (int(words[2 * (t % 2) + int(p > lo)]) + 1) / 2.0**32
 
                 loss = model.loss
                 if model.gilbert:
@@ -192,21 +195,24 @@ def _reference_messages(model, seed, q, v, eta, leader, k_steps):
 
 
 @pytest.mark.parametrize(
-    "links",
+    ("links", "m_uavs"),
     [
-        {"loss": 0.3, "delay": 1, "delay_max": 4, "rate": 5.0},
-        {"loss_model": "gilbert", "p_good_bad": 0.2, "p_bad_good": 0.3, "loss_good": 0.1,
-         "loss_bad": 0.9, "delay_max": 2, "range": 9.0},
-        {"range": 7.0, "use_graph": False, "delay": 2},
+        ({"loss": 0.3, "delay": 1, "delay_max": 4, "rate": 5.0}, 6),
+        ({"loss_model": "gilbert", "p_good_bad": 0.2, "p_bad_good": 0.3, "loss_good": 0.1,
+          "loss_bad": 0.9, "delay_max": 2, "range": 9.0}, 6),
+        ({"range": 7.0, "use_graph": False, "delay": 2}, 6),
+        # more than DRAW_BATCH_PAIRS pairs: one turn drawn at a time
+        ({"range": 7.0, "use_graph": False, "loss": 0.4, "delay": 1, "delay_max": 3}, 13),
     ],
 )  # fmt: skip
-def test_message_process_matches_a_plain_python_rerun(links):
+def test_message_process_matches_a_plain_python_rerun(links, m_uavs):
     """The kernel's exchange (:func:`crlbswarm.links.exchange`), driven step by step on
     random positions and velocities, against the plain Python re-run of the same messages:
     every link's last received state and stamp, every UAV's eta, the counts, the links in
     use and their ages, and the connectivity (a breadth-first search)."""
-    cfg, seed, m_uavs, leader, k_steps, dt = LinksConfig(**links), 4, 6, 2, 60, 0.1
+    cfg, seed, leader, k_steps, dt = LinksConfig(**links), 4, 2, 60, 0.1
     model = link_model(cfg, ring_adjacency(m_uavs), leader, dt)
+    assert (model.batch == 1) == (model.n_pairs > DRAW_BATCH_PAIRS)
     rng = np.random.default_rng(seed)
     q = np.cumsum(rng.normal(size=(k_steps, m_uavs, 2)), axis=0) + rng.uniform(-6, 6, (m_uavs, 2))
     v = rng.normal(size=(k_steps, m_uavs, 2))
@@ -231,7 +237,7 @@ def test_message_process_matches_a_plain_python_rerun(links):
         used = np.flatnonzero(model.law & near & (st.stamp >= 0))
         count = st.act_indptr[-1]
         assert st.act_links[:count].tolist() == used.tolist()
-        assert np.diff(st.act_indptr).tolist() == np.bincount(receiver[used], minlength=6).tolist()
+        assert np.diff(st.act_indptr).tolist() == np.bincount(receiver[used], minlength=m_uavs).tolist()
         ages = k - st.stamp[used]
         if used.size:
             assert series[2, k] == pytest.approx(ages.mean() * dt, rel=1e-12)
@@ -375,6 +381,33 @@ def test_the_paper_mission_converges_with_loss_and_delay():
     assert converged.sum() >= 5
     assert np.all(result.metrics["final_crlb_ratio"][converged] < 1.01)
     assert np.all(np.abs(result.metrics["delivered_fraction"] - 0.8) < 0.02)
+
+
+def test_auto_gains_are_resolved_for_the_links_largest_age():
+    """"auto" epsilon is halved delayed limit for the largest age (delay_max + period - 1);
+    without a delay (and without links) the gains of the state of the step."""
+    base = cs.load_scenario("paper_safe").model_dump(exclude_none=True)
+    adj = cs.load_scenario("paper_safe").adjacency
+    for links, age in (({}, 0), ({"loss": 0.3}, 0), ({"delay": 3}, 3),
+                       ({"delay": 1, "delay_max": 4}, 4), ({"rate": 2.5, "delay": 2}, 5)):
+        sc = cs.Scenario.from_dict({**base, "links": links}, source="test")
+        assert sc.links is not None and sc.links.largest_age(sc.time.step) == age
+        assert sc.gains.epsilon == cs.graphs.auto_formation_step(adj, age)
+        assert sc.gains.gamma == cs.load_scenario("paper_safe").gains.gamma
+    assert cs.load_scenario("paper_safe").gains.epsilon == cs.graphs.auto_formation_step(adj)
+    fixed = _paper({"delay": 3})
+    assert fixed.gains.epsilon == 0.01 and fixed.gains.gamma == 0.25  # (explicit gains kept)
+
+
+def test_auto_gains_converge_with_delay():
+    """paper_safe ("auto" gains) with 3 steps of delay: every run converges (with the gains
+    of the state of the step none did: the shape oscillated, docs/links.md sec. 9)."""
+    data = cs.load_scenario("paper_safe").model_dump(exclude_none=True)
+    data["links"] = {"loss": 0.2, "delay": 3}
+    result = cs.simulate(cs.Scenario.from_dict(data, source="test"), seeds=range(3),
+                         keep_trajectories=False)  # fmt: skip
+    assert np.all(np.isfinite(result.metrics["convergence_time_s"]))
+    assert np.all(result.metrics["final_crlb_ratio"] < 1.01)
 
 
 # -- errors ----------------------------------------------------------------------------------

@@ -144,7 +144,8 @@ class ControlGains(ConfigModel, metaclass=_OneLineErrors):
     epsilon: AutoGain = Field(
         "auto",
         description="formation gain epsilon per step, eqs. (16), (19) (paper: 0.01); "
-        '"auto": 1/lambda_max(L), the fastest step without oscillation',
+        '"auto": 1/lambda_max(L), the fastest step without oscillation; with delayed '
+        "links sin(pi/(2(2d+1)))/lambda_max(L), d = links' largest age in steps",
     )
     gamma: AutoGain = Field(
         "auto",
@@ -162,7 +163,7 @@ class ControlGains(ConfigModel, metaclass=_OneLineErrors):
         True, description="leader also steers the formation (disc of radius eta r*) off obstacles"
     )
 
-    def resolve(self, adjacency: Adjacency, leader: int) -> ControlGains:
+    def resolve(self, adjacency: Adjacency, leader: int, delay: int = 0) -> ControlGains:
         """The gains with ``"auto"`` replaced by the values the graph's spectrum gives.
 
         Parameters
@@ -171,16 +172,20 @@ class ControlGains(ConfigModel, metaclass=_OneLineErrors):
             The communication graph.
         leader : int
             Index of the leader.
+        delay : int, optional
+            The largest age of a neighbour's state the laws act on, steps (0: the state of
+            the step; a scenario's links: :meth:`crlbswarm.links.LinksConfig.largest_age`).
 
         Returns
         -------
         ControlGains
             The same gains, ``epsilon`` from :func:`crlbswarm.graphs.auto_formation_step`
-            and ``gamma`` from :func:`crlbswarm.graphs.auto_consensus_step` where ``"auto"``.
+            (for ``delay``) and ``gamma`` from :func:`crlbswarm.graphs.auto_consensus_step`
+            where ``"auto"`` (a convex combination: stable whatever the delay).
         """
         update: dict[str, float] = {}
         if self.epsilon == "auto":
-            update["epsilon"] = auto_formation_step(adjacency)
+            update["epsilon"] = auto_formation_step(adjacency, delay)
         if self.gamma == "auto":
             update["gamma"] = auto_consensus_step(adjacency, leader)
         return self.model_copy(update=update) if update else self

@@ -86,8 +86,10 @@ __all__ = [
     "philox4x32",
     "standard_normals",
     "stream_key",
+    "uniform32",
     "uniform53",
     "uniform_pair",
+    "uniform_quad",
 ]
 
 #: Stream of the motion disturbance (counter word ``c2``): a pair of normals per UAV and step.
@@ -97,8 +99,8 @@ DISTURBANCE = 0
 RANGE_NOISE = 1
 
 #: Stream of the communication links (counter word ``c2``; :mod:`crlbswarm.links`): the
-#: loss, delay and channel state of the messages between UAVs a < b, counted by (step, a,
-#: LINKS, 4 b + kind).
+#: loss, delay and channel state of the messages between UAVs a < b sent at the sending
+#: turns 2 j and 2 j + 1, counted by (j, a, LINKS, 4 b + kind).
 LINKS = 2
 
 #: Streams per phase of a mission with faults (:mod:`crlbswarm.faults`): phase ``p`` draws
@@ -121,6 +123,7 @@ _LO_SHIFT = np.uint64(11)
 _ROUNDS = 10
 _WORD = 2**32
 _INV_2_53 = 2.0**-53  # 53-bit integer -> double
+_INV_2_32 = 2.0**-32  # 32-bit integer -> double
 
 # sin and cos of a turn fraction n / 2**53 (normal_pair): the quarter turn from the top two
 # bits of n + 2**50 (an eighth of a turn), the remaining angle in [-pi/4, pi/4), where the
@@ -213,6 +216,28 @@ def uniform53(hi, lo):
 
 
 @njit(cache=True, inline="always")
+def uniform32(word):
+    """The uniform in ``(0, 1]`` of one 32-bit word: ``(word + 1) 2**-32`` (exact).
+
+    Parameters
+    ----------
+    word : int
+        A 32-bit word (an output of :func:`philox4x32`).
+
+    Returns
+    -------
+    float
+        A multiple of ``2**-32`` in ``[2**-32, 1]``.
+
+    Examples
+    --------
+    >>> uniform32(0) == 2.0**-32, uniform32(2**32 - 1)
+    (True, 1.0)
+    """
+    return np.float64((np.uint64(word) & _MASK) + np.uint64(1)) * _INV_2_32
+
+
+@njit(cache=True, inline="always")
 def _bits53(hi, lo):
     """The 53-bit integer of ``hi``'s 32 bits above ``lo``'s top 21, plus one (int64 in
     ``1 .. 2**53``)."""
@@ -258,6 +283,28 @@ def uniform_pair(k0, k1, c0, c1, c2, c3):
     """
     x0, x1, x2, x3 = philox4x32(c0, c1, c2, c3, k0, k1)
     return uniform53(x0, x1), uniform53(x2, x3)
+
+
+@njit(cache=True, inline="always")
+def uniform_quad(k0, k1, c0, c1, c2, c3):
+    """Four independent uniforms in ``(0, 1]`` from one Philox block, 32 bits each.
+
+    Parameters
+    ----------
+    k0, k1 : int
+        The key (:func:`stream_key`).
+    c0, c1, c2, c3 : int
+        The counter.
+
+    Returns
+    -------
+    tuple of 4 float
+        :func:`uniform32` of the words ``x0 .. x3``: twice the uniforms of
+        :func:`uniform_pair` per block, at a resolution of ``2**-32`` (the link layer's
+        message draws, :func:`crlbswarm.links.pair_block`).
+    """
+    x0, x1, x2, x3 = philox4x32(c0, c1, c2, c3, k0, k1)
+    return uniform32(x0), uniform32(x1), uniform32(x2), uniform32(x3)
 
 
 @njit(cache=True, inline="always")

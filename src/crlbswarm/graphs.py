@@ -45,6 +45,7 @@ __all__ = [
     "auto_formation_step",
     "communication_graph",
     "consensus_step_limit",
+    "delayed_step_factor",
     "formation_step_limit",
     "ring_adjacency",
     "settling_steps",
@@ -394,25 +395,65 @@ def formation_step_limit(adjacency: Adjacency) -> float:
     return 2.0 / _largest_eigenvalue(_check_adjacency(adjacency).laplacian())
 
 
-def auto_formation_step(adjacency: Adjacency) -> float:
-    r"""The formation gain of ``epsilon = "auto"``: :math:`1/\lambda_{\max}(L)`.
+def auto_formation_step(adjacency: Adjacency, delay: int = 0) -> float:
+    r"""The formation gain of ``epsilon = "auto"``: :math:`1/\lambda_{\max}(L)`, or, when
+    the neighbours' positions are up to ``delay`` steps old,
+    :math:`\sin(\pi/(2(2d+1)))/\lambda_{\max}(L)`.
 
     Half the stability limit: the fastest step at which every mode of the shape error,
     :math:`1 - \varepsilon\lambda_i`, decays without changing sign (the step that minimises
     the spectral radius, :math:`2/(\lambda_2 + \lambda_{\max})`, would make the stiffest mode
-    alternate sign every step: the UAVs would zig-zag). Not in the paper.
+    alternate sign every step: the UAVs would zig-zag). With a delay of :math:`d` steps
+    the limit is that of the delayed mode :math:`z_{k+1} = z_k - \varepsilon\lambda_i
+    z_{k-d}` (:func:`delayed_step_factor`), and the gain is again half of it; for
+    :math:`d = 0` the two are the same. Not in the paper (``docs/control.md`` sec. 6).
 
     Parameters
     ----------
     adjacency : Adjacency
         The communication graph.
+    delay : int, optional
+        The largest age of a neighbour's position the law acts on, steps (0: the state of
+        the step; with links, :meth:`crlbswarm.links.LinksConfig.largest_age`).
 
     Returns
     -------
     float
         :math:`\varepsilon`, per step.
     """
-    return 0.5 * formation_step_limit(adjacency)
+    d = _v.count(delay, "delay", 0)
+    if d == 0:
+        return 0.5 * formation_step_limit(adjacency)
+    return 0.25 * delayed_step_factor(d) * formation_step_limit(adjacency)
+
+
+def delayed_step_factor(delay: int) -> float:
+    r"""The stability limit of the delayed mode: :math:`2\sin(\pi/(2(2d+1)))`.
+
+    The scalar recurrence :math:`z_{k+1} = z_k - a\,z_{k-d}` decays if and only if
+    :math:`0 < a < 2\sin(\pi/(2(2d+1)))`: 2 without delay, 1 for one step, 0.445 for three,
+    0.150 for ten. :func:`auto_formation_step` applies it to each mode of the Laplacian,
+    :math:`a = \varepsilon\lambda_i`, as if the whole update were ``delay`` steps old (a
+    UAV's own position is current: the bound is on the safe side, and the missions confirm
+    it, ``docs/links.md`` sec. 9).
+
+    Parameters
+    ----------
+    delay : int
+        :math:`d`, steps.
+
+    Returns
+    -------
+    float
+        The limit of :math:`a`.
+
+    Examples
+    --------
+    >>> round(delayed_step_factor(0), 12), round(delayed_step_factor(1), 12)
+    (2.0, 1.0)
+    """
+    d = _v.count(delay, "delay", 0)
+    return 2.0 * math.sin(math.pi / (2 * (2 * d + 1)))
 
 
 def auto_consensus_step(adjacency: Adjacency, leader: int) -> float:

@@ -42,11 +42,12 @@ What is not communicated (stated assumptions)
     eq. (15) is an observer's figure (true positions, the configured graph).
 Draws
     From :mod:`crlbswarm.counter_rng`, stream :data:`~crlbswarm.counter_rng.LINKS`, keyed
-    by the run's seed: the messages between UAVs ``a < b`` sent at step ``k`` take the
-    block of the counter (k, a, LINKS, 4 b + kind), kind 0 for the loss, 1 for the delay
-    and 2 for the Gilbert-Elliott transition, its first uniform for the message from ``a``
-    to ``b`` and its second for the one from ``b`` to ``a`` (:func:`pair_draws`); only the
-    kinds the model needs are drawn. A run's messages do not depend on its batch, and a
+    by the run's seed: the messages between UAVs ``a < b`` sent at the sending turns
+    ``2 j`` and ``2 j + 1`` (turn ``t``: step ``t * period``) take the block of the counter
+    (j, a, LINKS, 4 b + kind), kind 0 for the loss, 1 for the delay and 2 for the
+    Gilbert-Elliott transition, as four 32-bit uniforms: turn ``2 j``'s for the message
+    from ``a`` to ``b`` and for the one from ``b`` to ``a``, then turn ``2 j + 1``'s
+    (:func:`pair_block`, :func:`pair_draws`); only the kinds the model needs are drawn. A run's messages do not depend on its batch, and a
     link (p, m) has the same messages whether it is a graph link or a pair within range.
 Loss models
     ``bernoulli``: each message lost independently with probability ``loss``.
@@ -80,7 +81,7 @@ from pydantic import Field, model_validator
 from . import _validation as _v
 from ._config import ConfigModel, PositiveFloat
 from ._numba import leaf
-from .counter_rng import LINKS, stream_key, uniform_pair
+from .counter_rng import LINKS, stream_key, uniform_quad
 from .errors import FieldError
 from .graphs import Adjacency
 
@@ -120,6 +121,7 @@ __all__ = [
     "message_fates",
     "model_layout",
     "neighbour_tables",
+    "pair_block",
     "pair_draws",
     "send_gilbert",
     "send_messages",
@@ -259,6 +261,23 @@ class LinksConfig(ConfigModel):
     def largest_delay(self) -> int:
         """The largest delay of a message, steps (``delay_max``, or the fixed ``delay``)."""
         return self.delay if self.delay_max is None else self.delay_max
+
+    def largest_age(self, dt: float) -> int:
+        """The largest age of a neighbour's state when no message is lost, steps: the
+        largest delay plus a send period less one (``"auto"`` gains are stable for it,
+        :func:`crlbswarm.graphs.auto_formation_step`).
+
+        Parameters
+        ----------
+        dt : float
+            The time step, s.
+
+        Returns
+        -------
+        int
+            ``largest_delay + period(dt) - 1``.
+        """
+        return self.largest_delay + self.period(dt) - 1
 
     def timeout_steps(self, dt: float) -> int:
         """Age in steps beyond which a link is stale: ``timeout`` (rounded down), or two
@@ -448,9 +467,8 @@ class LinkModel(NamedTuple):
         :data:`DRAW_BATCH_PAIRS` pairs, else 1).
     table : ndarray of int64
         :attr:`indptr`, :attr:`senders`, :attr:`receivers`, :attr:`law`,
-        :attr:`pair_slot`, :attr:`pair_lo`, :attr:`pair_hi`, :attr:`pair_fwd`,
-        :attr:`pair_back`, :attr:`draw_lo`, :attr:`draw_hi` and :attr:`draw_step`, one
-        after the other (:func:`model_layout`).
+        :attr:`pair_slot`, :attr:`pair_lo`, :attr:`pair_hi`, :attr:`pair_fwd` and
+        :attr:`pair_back`, one after the other (:func:`model_layout`).
     """
 
     period: int
@@ -527,23 +545,6 @@ class LinkModel(NamedTuple):
         """The link from the higher UAV to the lower, or -1; shape (P,)."""
         return self._part(8)
 
-    @property
-    def draw_lo(self) -> np.ndarray:
-        """``pair_lo`` repeated ``batch`` times: the blocks of a batch of draws, in the
-        order of :attr:`LinkState.draws`; shape (batch P,)."""
-        return self._part(9)
-
-    @property
-    def draw_hi(self) -> np.ndarray:
-        """``pair_hi`` likewise, shape (batch P,)."""
-        return self._part(10)
-
-    @property
-    def draw_step(self) -> np.ndarray:
-        """Each block's sending step after its batch's first (``b period`` for the
-        ``b``-th), shape (batch P,)."""
-        return self._part(11)
-
 
 @njit(cache=True, inline="always")
 def model_layout(m, e, p, b):
@@ -557,12 +558,7 @@ def model_layout(m, e, p, b):
     hi = lo + p
     fwd = hi + p
     back = fwd + p
-    draw_lo = back + p
-    draw_hi = draw_lo + b * p
-    draw_step = draw_hi + b * p
-    return 0, senders, receivers, law, slot, lo, hi, fwd, back, draw_lo, draw_hi, draw_step, (
-        draw_step + b * p
-    )
+    return 0, senders, receivers, law, slot, lo, hi, fwd, back, back + p
 
 
 def link_pairs(
@@ -630,10 +626,9 @@ def link_model(links: LinksConfig, adjacency: Adjacency, leader: int, dt: float)
     pair_slot[pair_back[pair_back >= 0]] = 2 * np.flatnonzero(pair_back >= 0) + 1
     period = links.period(dt)
     batch = DRAW_BATCH if pair_lo.size <= DRAW_BATCH_PAIRS else 1
-    draw_step = np.repeat(np.arange(batch, dtype=np.int64) * period, pair_lo.size)
     table = np.concatenate([
         indptr, senders, receivers, law.astype(np.int64), pair_slot, pair_lo, pair_hi,
-        pair_fwd, pair_back, np.tile(pair_lo, batch), np.tile(pair_hi, batch), draw_step,
+        pair_fwd, pair_back,
     ]).astype(np.int64)  # fmt: skip
     gilbert = links.loss_model == "gilbert"
     p_gb = float(links.p_good_bad or 0.0)
@@ -916,63 +911,90 @@ LOSS_DRAW, DELAY_DRAW, CHANNEL_DRAW = 0, 1, 2
 
 
 @njit(cache=True, inline="always")
-def pair_draws(k0, k1, step, lo, hi, kind):
+def pair_block(k0, k1, j, lo, hi, kind):
     """The uniforms of kind ``kind`` (:data:`LOSS_DRAW`, :data:`DELAY_DRAW`,
-    :data:`CHANNEL_DRAW`) of the two messages between UAVs ``lo < hi`` sent at ``step``
-    (the layout's one writing): the pair of the counter ``(step, lo, LINKS, 4 hi + kind)``,
-    the first for ``lo`` to ``hi``, the second for ``hi`` to ``lo`` (the two directions of
-    a link share a Philox block)."""
-    return uniform_pair(k0, k1, step, lo, LINKS, 4 * hi + kind)
+    :data:`CHANNEL_DRAW`) of the messages between UAVs ``lo < hi`` sent at the sending
+    turns ``2 j`` and ``2 j + 1`` (the layout's one writing): the block of the counter
+    ``(j, lo, LINKS, 4 hi + kind)`` (:func:`crlbswarm.counter_rng.uniform_quad`), its
+    words for turn ``2 j`` from ``lo`` to ``hi`` and from ``hi`` to ``lo``, then those of
+    turn ``2 j + 1`` (the two directions of a link and two turns share a block)."""
+    return uniform_quad(k0, k1, j, lo, LINKS, 4 * hi + kind)
 
 
 @njit(cache=True, inline="always")
-def link_uniform(k0, k1, step, sender, receiver, kind):
-    """The uniform of kind ``kind`` of the message of ``sender`` to ``receiver`` sent at
-    ``step`` (:func:`pair_draws`)."""
+def pair_draws(k0, k1, turn, lo, hi, kind):
+    """The two uniforms of kind ``kind`` of the messages between UAVs ``lo < hi`` sent at
+    the sending turn ``turn`` (the step ``turn * period``): from ``lo`` to ``hi``, then
+    from ``hi`` to ``lo`` (:func:`pair_block`)."""
+    a, b, c, d = pair_block(k0, k1, turn >> 1, lo, hi, kind)
+    if turn & 1:
+        return c, d
+    return a, b
+
+
+@njit(cache=True, inline="always")
+def link_uniform(k0, k1, turn, sender, receiver, kind):
+    """The uniform of kind ``kind`` of the message of ``sender`` to ``receiver`` sent at the
+    sending turn ``turn`` (:func:`pair_draws`)."""
     if sender < receiver:
-        return pair_draws(k0, k1, step, sender, receiver, kind)[0]
-    return pair_draws(k0, k1, step, receiver, sender, kind)[1]
+        return pair_draws(k0, k1, turn, sender, receiver, kind)[0]
+    return pair_draws(k0, k1, turn, receiver, sender, kind)[1]
 
 
 @leaf
-def draw_kind(base, k0, k1, lo, hi, step, kind, row):
-    """The uniforms of kind ``kind`` of the blocks ``i`` (:func:`pair_draws` of the pair
-    ``lo[i] < hi[i]`` at the step ``base + step[i]``) into ``row[2 i]`` and ``row[2 i + 1]``.
+def draw_kind(first, k0, k1, lo, hi, kind, batch, row):
+    """The uniforms of kind ``kind`` of the ``batch`` sending turns from ``first`` (even
+    when ``batch`` is) for the pairs ``lo[i] < hi[i]``: turn ``first + b``'s two of pair
+    ``i`` into ``row[2 (b P + i)]`` and the next (:func:`pair_block`, one block for two
+    turns; :func:`pair_draws` for a batch of one turn).
 
     One block at a time, in scalar code: the compiler would otherwise compute several at
     once with wide vector multiplies (AVX-512), whose use lowers the core's clock for
     a while after (the whole mission then runs slower, measured: about 5 % of a batch of
     paper missions). The loop's step depends on a uniform (always in (0, 1], so it is
     always 1): the compiler cannot count the iterations, and keeps the loop scalar."""
-    i, n = 0, lo.shape[0]
-    while i < n:
-        a, b = pair_draws(k0, k1, base + step[i], lo[i], hi[i], kind)
-        row[2 * i] = a
-        row[2 * i + 1] = b
-        i += 1 if a > 0.0 else n
+    p = lo.shape[0]
+    if batch == 1:
+        i = 0
+        while i < p:
+            a, b = pair_draws(k0, k1, first, lo[i], hi[i], kind)
+            row[2 * i] = a
+            row[2 * i + 1] = b
+            i += 1 if a > 0.0 else p
+        return
+    for t in range(batch >> 1):
+        j, base = (first >> 1) + t, 4 * t * p
+        q = 0
+        while q < p:
+            a, b, c, d = pair_block(k0, k1, j, lo[q], hi[q], kind)
+            at = base + 2 * q
+            row[at] = a
+            row[at + 1] = b
+            row[at + 2 * p] = c
+            row[at + 2 * p + 1] = d
+            q += 1 if a > 0.0 else p
 
 
 @leaf
-def draw_messages(k, k0, k1, model, st):
-    """The uniforms of the messages of the ``model.batch`` sending steps from ``k`` into
+def draw_messages(first, k0, k1, model, st):
+    """The uniforms of the messages of the ``model.batch`` sending turns from ``first`` into
     :attr:`LinkState.draws`: for each kind the model needs (loss, delay, channel; none
-    for perfect links), each step ``b`` of the batch and each pair of UAVs ``i`` its block
-    (:func:`pair_draws`), the first uniform in column ``2 (b P + i)``, the second in the
-    next (:data:`DRAW_BATCH`; the draws are functions of the counter, so drawing ahead
+    for perfect links), each turn ``b`` of the batch and each pair of UAVs ``i``, its two
+    uniforms (:func:`draw_kind`) in columns ``2 (b P + i)`` and the next
+    (:data:`DRAW_BATCH`; the draws are functions of the counter, so drawing ahead
     changes none)."""
     m, e, p, b = model.n_uavs, model.n_links, model.n_pairs, model.batch
     part = model_layout(m, e, p, b)
-    lo = model.table[part[9] : part[10]]
-    hi = model.table[part[10] : part[11]]
-    step = model.table[part[11] : part[12]]
+    lo = model.table[part[5] : part[6]]
+    hi = model.table[part[6] : part[7]]
     w = 2 * b * p
     at = state_layout(m, e, model.depth, w)
     if model.loss > 0.0 or model.gilbert:
-        draw_kind(k, k0, k1, lo, hi, step, LOSS_DRAW, st.floats[at[5] : at[5] + w])
+        draw_kind(first, k0, k1, lo, hi, LOSS_DRAW, b, st.floats[at[5] : at[5] + w])
     if model.span > 1:
-        draw_kind(k, k0, k1, lo, hi, step, DELAY_DRAW, st.floats[at[5] + w : at[5] + 2 * w])
+        draw_kind(first, k0, k1, lo, hi, DELAY_DRAW, b, st.floats[at[5] + w : at[5] + 2 * w])
     if model.gilbert:
-        draw_kind(k, k0, k1, lo, hi, step, CHANNEL_DRAW, st.floats[at[5] + 2 * w : at[6]])
+        draw_kind(first, k0, k1, lo, hi, CHANNEL_DRAW, b, st.floats[at[5] + 2 * w : at[6]])
 
 
 @njit(cache=True, inline="always")
@@ -1183,7 +1205,7 @@ def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
         first = turn - turn % model.batch  # the batch of this sending step
         if first != it[_U(at[9] + 2)]:
             it[_U(at[9] + 2)] = first
-            draw_messages(first * model.period, k0, k1, model, st)
+            draw_messages(first, k0, k1, model, st)
         sent, delivered = send_messages(k, model, st)
     st.floats[_U(at[3] + leader)] = eta
     kept = not ranged and it[_U(at[9] + 1)] == 1  # the links in use: every one, for good
@@ -1261,10 +1283,10 @@ def connected_fresh(k, model, st):
 def _fates(k0, k1, model, steps, sender, receiver, delivered, delay, state):
     channel = np.full(1, -1, np.int8)
     for i in range(steps.shape[0]):
-        k = steps[i]
-        u_loss = link_uniform(k0, k1, k, sender, receiver, LOSS_DRAW)
-        u_delay = link_uniform(k0, k1, k, sender, receiver, DELAY_DRAW)
-        u_channel = link_uniform(k0, k1, k, sender, receiver, CHANNEL_DRAW)
+        turn = steps[i] // model.period
+        u_loss = link_uniform(k0, k1, turn, sender, receiver, LOSS_DRAW)
+        u_delay = link_uniform(k0, k1, turn, sender, receiver, DELAY_DRAW)
+        u_channel = link_uniform(k0, k1, turn, sender, receiver, CHANNEL_DRAW)
         ok, d = message_fate(u_loss, u_delay, u_channel, 0, model, channel)
         delivered[i] = ok
         delay[i] = d

@@ -633,11 +633,16 @@ class Scenario(ConfigModel):
     @cached_property
     def gains(self) -> ControlGains:
         """The control gains with ``"auto"`` resolved on this scenario's graph (on every pair
-        of UAVs when ``links.use_graph`` is false: the laws may then link any two)."""
-        links, count = self.links, self.uavs.count
-        if links is None or links.use_graph or count > MAX_ALL_PAIRS_UAVS:
-            return self.control.resolve(self.adjacency, self.uavs.leader)
-        return self.control.resolve(all_pairs_adjacency(count), self.uavs.leader)
+        of UAVs when ``links.use_graph`` is false: the laws may then link any two), for the
+        largest age of the links' messages (:meth:`crlbswarm.links.LinksConfig.largest_age`;
+        0 without links: the gains of the state of the step)."""
+        links, count, leader = self.links, self.uavs.count, self.uavs.leader
+        if links is None:
+            return self.control.resolve(self.adjacency, leader)
+        age = links.largest_age(self.time.step)
+        if links.use_graph or count > MAX_ALL_PAIRS_UAVS:
+            return self.control.resolve(self.adjacency, leader, age)
+        return self.control.resolve(all_pairs_adjacency(count), leader, age)
 
     @cached_property
     def formation_design(self) -> FormationDesign:
