@@ -237,7 +237,8 @@ def test_message_process_matches_a_plain_python_rerun(links, m_uavs):
         used = np.flatnonzero(model.law & near & (st.stamp >= 0))
         count = st.act_indptr[-1]
         assert st.act_links[:count].tolist() == used.tolist()
-        assert np.diff(st.act_indptr).tolist() == np.bincount(receiver[used], minlength=m_uavs).tolist()
+        per_receiver = np.bincount(receiver[used], minlength=m_uavs)
+        assert np.diff(st.act_indptr).tolist() == per_receiver.tolist()
         ages = k - st.stamp[used]
         if used.size:
             assert series[2, k] == pytest.approx(ages.mean() * dt, rel=1e-12)
@@ -384,19 +385,26 @@ def test_the_paper_mission_converges_with_loss_and_delay():
 
 
 def test_auto_gains_are_resolved_for_the_links_largest_age():
-    """"auto" epsilon is halved delayed limit for the largest age (delay_max + period - 1);
+    """ "auto" epsilon is halved delayed limit for the largest age (delay_max + period - 1);
     without a delay (and without links) the gains of the state of the step."""
     base = cs.load_scenario("paper_safe").model_dump(exclude_none=True)
     adj = cs.load_scenario("paper_safe").adjacency
-    for links, age in (({}, 0), ({"loss": 0.3}, 0), ({"delay": 3}, 3),
-                       ({"delay": 1, "delay_max": 4}, 4), ({"rate": 2.5, "delay": 2}, 5)):
+    for links, age in (
+        ({}, 0),
+        ({"loss": 0.3}, 0),
+        ({"delay": 3}, 3),
+        ({"delay": 1, "delay_max": 4}, 4),
+        ({"rate": 2.5, "delay": 2}, 5),
+    ):
         sc = cs.Scenario.from_dict({**base, "links": links}, source="test")
-        assert sc.links is not None and sc.links.largest_age(sc.time.step) == age
+        assert sc.links is not None
+        assert sc.links.largest_age(sc.time.step) == age
         assert sc.gains.epsilon == cs.graphs.auto_formation_step(adj, age)
         assert sc.gains.gamma == cs.load_scenario("paper_safe").gains.gamma
     assert cs.load_scenario("paper_safe").gains.epsilon == cs.graphs.auto_formation_step(adj)
     fixed = _paper({"delay": 3})
-    assert fixed.gains.epsilon == 0.01 and fixed.gains.gamma == 0.25  # (explicit gains kept)
+    assert fixed.gains.epsilon == 0.01  # (explicit gains kept)
+    assert fixed.gains.gamma == 0.25
 
 
 def test_auto_gains_converge_with_delay():

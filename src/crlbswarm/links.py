@@ -47,8 +47,9 @@ Draws
     (j, a, LINKS, 4 b + kind), kind 0 for the loss, 1 for the delay and 2 for the
     Gilbert-Elliott transition, as four 32-bit uniforms: turn ``2 j``'s for the message
     from ``a`` to ``b`` and for the one from ``b`` to ``a``, then turn ``2 j + 1``'s
-    (:func:`pair_block`, :func:`pair_draws`); only the kinds the model needs are drawn. A run's messages do not depend on its batch, and a
-    link (p, m) has the same messages whether it is a graph link or a pair within range.
+    (:func:`pair_block`, :func:`pair_draws`); only the kinds the model needs are drawn.
+    A run's messages do not depend on its batch, and a link (p, m) has the same messages
+    whether it is a graph link or a pair within range.
 Loss models
     ``bernoulli``: each message lost independently with probability ``loss``.
     ``gilbert`` (Gilbert-Elliott): each link has a channel state, good or bad, that
