@@ -145,12 +145,12 @@ DRAW_BATCH = 8
 #: Most pairs of UAVs for which a run draws :data:`DRAW_BATCH` sending steps at once.
 DRAW_BATCH_PAIRS = 64
 
-#: Words at the start of :attr:`LinkState.ints`: M, E, ``delay_max + 1`` and the uniforms
+#: Words at the start of ``LinkState.ints``: M, E, ``delay_max + 1`` and the uniforms
 #: per kind (its parts' sizes, for the properties).
 STATE_HEADER = 4
 
 
-#: The kernels index the flat buffers of a :class:`LinkState` and a :attr:`LinkModel.table`
+#: The kernels index the flat buffers of a :class:`LinkState` and a ``LinkModel.table``
 #: with unsigned integers (``buffer[_U(i)]``): the offsets are never negative, and Numba
 #: then emits no wraparound of negative indices (a third of the instructions of a loop
 #: over the links).
@@ -549,7 +549,7 @@ class LinkModel(NamedTuple):
 
 @njit(cache=True, inline="always")
 def model_layout(m, e, p, b):
-    """Where the parts of :attr:`LinkModel.table` start (and the last ends), for M UAVs,
+    """Where the parts of ``LinkModel.table`` start (and the last ends), for M UAVs,
     E links, P pairs and batches of ``b`` sending steps (the layout's one writing)."""
     senders = m + 1
     receivers = senders + e
