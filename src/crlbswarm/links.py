@@ -719,6 +719,10 @@ class LinkState(NamedTuple):
         m, e, d, w = (int(x) for x in self.ints[:STATE_HEADER])
         return (m, e, d, w, *state_layout(m, e, d, w))
 
+    def _part(self, buf: np.ndarray, i: int) -> np.ndarray:
+        at = self._at()[4:]
+        return buf[at[i] : at[i + 1]]
+
     @property
     def history(self) -> np.ndarray:
         """Each UAV's broadcast state at the last D+1 sending steps, in slot
@@ -742,23 +746,20 @@ class LinkState(NamedTuple):
     @property
     def eta(self) -> np.ndarray:
         """The :math:`\\eta` each UAV flies (the leader's its own), shape (M,)."""
-        at = self._at()[4:]
-        return self.floats[at[3] : at[4]]
+        return self._part(self.floats, 3)
 
     @property
     def eta_stamp(self) -> np.ndarray:
         """Its stamp: the step the leader computed it (-1: the start value 1), shape (M,)."""
-        at = self._at()[4:]
-        return self.floats[at[4] : at[5]]
+        return self._part(self.floats, 4)
 
     @property
     def draws(self) -> np.ndarray:
-        """The uniforms of the messages of ``batch`` sending steps, one row per kind (loss,
-        delay, channel), two columns per pair of UAVs and step (:func:`draw_messages`;
-        link ``e``'s of the ``b``-th step of the batch in column ``2 b P +
-        model.pair_slot[e]``); shape (3, 2 batch P)."""
-        at = self._at()[4:]
-        return self.floats[at[5] : at[6]].reshape(3, -1)
+        """The uniforms of the messages of ``batch`` sending turns, one row per kind (loss,
+        delay, channel), two columns per pair of UAVs and sending turn
+        (:func:`draw_messages`; link ``e``'s of the ``b``-th turn of the batch in column
+        ``2 b P + model.pair_slot[e]``); shape (3, 2 batch P)."""
+        return self._part(self.floats, 5).reshape(3, -1)
 
     @property
     def pending(self) -> np.ndarray:
@@ -770,55 +771,47 @@ class LinkState(NamedTuple):
     @property
     def stamp(self) -> np.ndarray:
         """The send step of each link's last received message, -1 before any; shape (E,)."""
-        at = self._at()[4:]
-        return self.ints[at[8] : at[9]]
+        return self._part(self.ints, 8)
 
     @property
     def tally(self) -> np.ndarray:
         """How many links the laws may use have received something; 1 once the links in
         use are all of them for good (no range: ``act_*`` is then not rebuilt); the batch
-        in :attr:`draws` (its first sending step over the period, a multiple of
-        ``batch``; -1: none yet). Shape (3,)."""
-        at = self._at()[4:]
-        return self.ints[at[9] : at[10]]
+        in :attr:`draws` (its first sending turn, a multiple of ``batch``; -1: none
+        yet). Shape (3,)."""
+        return self._part(self.ints, 9)
 
     @property
     def act_indptr(self) -> np.ndarray:
         """The links the laws use at the step, CSR by receiver; shape (M+1,)."""
-        at = self._at()[4:]
-        return self.ints[at[10] : at[11]]
+        return self._part(self.ints, 10)
 
     @property
     def act_senders(self) -> np.ndarray:
         """Their senders, shape (E,) (the first ``act_indptr[M]``)."""
-        at = self._at()[4:]
-        return self.ints[at[11] : at[12]]
+        return self._part(self.ints, 11)
 
     @property
     def act_links(self) -> np.ndarray:
         """Their link numbers (the rows of ``recv_q`` and ``recv_v``), shape (E,)."""
-        at = self._at()[4:]
-        return self.ints[at[12] : at[13]]
+        return self._part(self.ints, 12)
 
     @property
     def parent(self) -> np.ndarray:
         """Union-find work of :func:`connected_fresh`, shape (M,)."""
-        at = self._at()[4:]
-        return self.ints[at[13] : at[14]]
+        return self._part(self.ints, 13)
 
     @property
     def channel(self) -> np.ndarray:
         """The Gilbert-Elliott state of each link: -1 before the first message, 0 good,
         1 bad; int8, shape (E,)."""
-        at = self._at()[4:]
-        return self.flags[at[15] : at[16]]
+        return self._part(self.flags, 15)
 
     @property
     def near(self) -> np.ndarray:
         """Whether each link is within range at the step (with a range only); int8,
         shape (E,)."""
-        at = self._at()[4:]
-        return self.flags[at[16] : at[17]]
+        return self._part(self.flags, 16)
 
 
 @njit(cache=True)
