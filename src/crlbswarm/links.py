@@ -136,10 +136,9 @@ MAX_DELAY = 1000
 #: ordered pair is a candidate link, M (M - 1) of them.
 MAX_ALL_PAIRS_UAVS = 1000
 
-#: Sending steps whose message uniforms a run draws at once (:func:`draw_messages`), when
-#: the candidate links join at most :data:`DRAW_BATCH_PAIRS` pairs of UAVs: the Philox
-#: blocks of a few pairs are then enough to fill the SIMD lanes (with more pairs, those of
-#: one step are).
+#: Sending turns whose message uniforms a run draws at once (:func:`draw_messages`), when
+#: the candidate links join at most :data:`DRAW_BATCH_PAIRS` pairs of UAVs (with more
+#: pairs, one turn at a time). Even: one Philox block serves two turns (:func:`pair_block`).
 DRAW_BATCH = 8
 
 #: Most pairs of UAVs for which a run draws :data:`DRAW_BATCH` sending steps at once.
