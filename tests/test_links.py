@@ -419,6 +419,25 @@ def test_auto_gains_converge_with_delay():
 
 
 # -- errors ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("links", [{"timeout": 1e300}, {"range": 1e300}, {"range": 1e-300}])
+def test_extreme_timeout_and_range_run(links):
+    """A timeout longer than any mission never goes stale; a range beyond any distance is
+    every link; a range below any distance is none (nothing delivered)."""
+    result = cs.simulate(_paper(links, 2.0), seeds=[0], keep_trajectories=False)
+    fraction = result.metrics["delivered_fraction"][0]
+    if links.get("range") == 1e-300:
+        assert np.isnan(fraction)  # (no message in range: none sent)
+    else:
+        assert fraction == 1.0
+        assert result.metrics["disconnected_s"][0] == 0.0
+
+
+def test_a_rate_of_one_message_per_mission_is_accepted():
+    sc = _paper({"rate": 0.2})  # (once every 50 steps: the 5 s mission's K)
+    assert sc.links is not None
+    assert sc.links.period(sc.time.step) == sc.time.steps
+
+
 @pytest.mark.parametrize(
     ("links", "tables", "field"),
     [
@@ -428,6 +447,9 @@ def test_auto_gains_converge_with_delay():
         ({"delay": 2000}, {}, "links.delay"),
         ({"delay": 3, "delay_max": 2}, {}, "links.delay_max"),
         ({"rate": 0}, {}, "links.rate"),
+        ({"rate": 1e-300}, {}, "links.rate"),  # (sends less than once in the 5 s mission)
+        ({"rate": 0.1}, {}, "links.rate"),
+        ({"rate": 1e-300}, {"control": {"epsilon": "auto", "gamma": "auto"}}, "links.rate"),
         ({"range": -5.0}, {}, "links.range"),
         ({"loss_model": "burst"}, {}, "links.loss_model"),
         ({"p_good_bad": 0.1}, {}, "links.p_good_bad"),

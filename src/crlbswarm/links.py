@@ -104,6 +104,7 @@ __all__ = [
     "arrivals",
     "broadcast",
     "candidate_links",
+    "check_link_timing",
     "check_links",
     "connected_fresh",
     "draw_kind",
@@ -291,11 +292,11 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            Steps.
+            Steps (at most ``2**62``: a longer timeout never goes stale in any mission).
         """
         if self.timeout is None:
             return 2 * self.period(dt) + self.largest_delay
-        return math.floor(self.timeout / dt + 1e-9)
+        return math.floor(min(self.timeout / dt, 2.0**62) + 1e-9)
 
 
 def all_pairs_adjacency(n_uavs: int) -> Adjacency:
@@ -323,8 +324,43 @@ def all_pairs_adjacency(n_uavs: int) -> Adjacency:
     return Adjacency(np.arange(n + 1, dtype=np.int64) * (n - 1), np.ascontiguousarray(indices))
 
 
-def check_links(links: LinksConfig, n_uavs: int, dt: float, gains: Any) -> None:
-    """The checks of a ``[links]`` table against its scenario (called by its validation).
+def check_link_timing(links: LinksConfig, dt: float, steps: int) -> None:
+    """The checks of a ``[links]`` table's timing against its mission (called by the
+    scenario's validation first: the ``"auto"`` gains are resolved for the links' largest
+    age).
+
+    Parameters
+    ----------
+    links : LinksConfig
+        The table.
+    dt : float
+        The time step, s.
+    steps : int
+        The mission's steps, K.
+
+    Raises
+    ------
+    FieldError
+        Naming the field: a rate so low that a UAV sends once every more steps than the
+        mission has, or a timeout shorter than a send period plus the largest delay (even
+        a perfect link would go stale).
+    """
+    if links.rate is not None and 1.0 / (links.rate * dt) > steps + 0.5:
+        raise FieldError(
+            "links.rate", f"{links.rate:g} per second sends less than once in the "
+            f"{steps * dt:g} s mission: at least 1/time.duration = {1.0 / (steps * dt):.4g}",
+        )  # fmt: skip
+    period, largest = links.period(dt), links.largest_delay
+    if links.timeout is not None and links.timeout_steps(dt) < period + largest:
+        raise FieldError(
+            "links.timeout", f"{links.timeout:g} s is shorter than a send period plus the "
+            f"largest delay, {(period + largest) * dt:g} s: even a perfect link would go stale",
+        )  # fmt: skip
+
+
+def check_links(links: LinksConfig, n_uavs: int, gains: Any) -> None:
+    """The checks of a ``[links]`` table against its scenario's swarm and gains (called by
+    its validation, after :func:`check_link_timing`).
 
     Parameters
     ----------
@@ -332,24 +368,15 @@ def check_links(links: LinksConfig, n_uavs: int, dt: float, gains: Any) -> None:
         The table.
     n_uavs : int
         Number of UAVs.
-    dt : float
-        The time step, s.
     gains : ControlGains
         The resolved gains (numbers, not ``"auto"``).
 
     Raises
     ------
     FieldError
-        Naming the field: a timeout shorter than a send period plus the largest delay
-        (even a perfect link would go stale), too many UAVs for links between every pair,
-        or gains unstable when every pair may be linked.
+        Naming the field: too many UAVs for links between every pair, or gains unstable
+        when every pair may be linked.
     """
-    period, largest = links.period(dt), links.largest_delay
-    if links.timeout is not None and links.timeout_steps(dt) < period + largest:
-        raise FieldError(
-            "links.timeout", f"{links.timeout:g} s is shorter than a send period plus the "
-            f"largest delay, {(period + largest) * dt:g} s: even a perfect link would go stale",
-        )  # fmt: skip
     if links.use_graph:
         return
     if n_uavs > MAX_ALL_PAIRS_UAVS:
@@ -636,7 +663,7 @@ def link_model(links: LinksConfig, adjacency: Adjacency, leader: int, dt: float)
     return LinkModel(
         period=period, depth=links.largest_delay + 1, delay=links.delay,
         span=links.largest_delay - links.delay + 1,
-        range2=math.inf if links.range is None else float(links.range) ** 2,
+        range2=math.inf if links.range is None else float(links.range) * float(links.range),
         loss=float(links.loss), gilbert=gilbert, p_good_bad=p_gb, p_bad_good=p_bg,
         pi_bad=p_gb / (p_gb + p_bg) if gilbert else 0.0,
         loss_good=float(0.0 if links.loss_good is None else links.loss_good),

@@ -45,7 +45,13 @@ from .errors import FieldError, ScenarioError
 from .faults import FaultPlan, FaultsConfig, check_faults, plan_faults
 from .fisher import crlb
 from .graphs import GRAPH_KINDS, Adjacency, communication_graph, ring_adjacency
-from .links import MAX_ALL_PAIRS_UAVS, LinksConfig, all_pairs_adjacency, check_links
+from .links import (
+    MAX_ALL_PAIRS_UAVS,
+    LinksConfig,
+    all_pairs_adjacency,
+    check_link_timing,
+    check_links,
+)
 from .multitarget import TargetAllocation, allocate_targets
 from .obstacles import Obstacles, obstacle_clearance
 from .planning import (
@@ -486,9 +492,11 @@ class Scenario(ConfigModel):
     def _check_whole(self) -> Scenario:
         if self.links is not None and self.extra_targets:
             raise FieldError("links", "is not supported with extra_targets (several targets)")
+        if self.links is not None:  # (first: the gains are resolved for the links' delay)
+            check_link_timing(self.links, self.time.step, self.time.steps)
         check_scenario(self)
         if self.links is not None:
-            check_links(self.links, self.uavs.count, self.time.step, self.gains)
+            check_links(self.links, self.uavs.count, self.gains)
         if self.faults is not None:
             check_faults(self)
         return self
