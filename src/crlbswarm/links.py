@@ -211,7 +211,7 @@ class LinksConfig(ConfigModel):
     )  # fmt: skip
     rate: PositiveFloat | None = Field(
         None, description="messages per second of each UAV: one every round(1/(rate dT)) steps, "
-        "at most every step (none: every step)",
+        "at most every step, at least once in the mission (none: every step)",
     )  # fmt: skip
     timeout: PositiveFloat | None = Field(
         None, description="a link whose last message is older than this is stale, s (not in "
