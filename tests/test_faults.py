@@ -164,6 +164,26 @@ def test_a_loss_at_the_end_or_detected_after_it():
     assert plan.events == ("t = 29.5 s: UAV 1 lost",)
 
 
+def test_times_and_timeouts_near_the_largest_float_are_beyond_the_end():
+    """A time or a timeout of 1e308 s (its steps overflow a float) never happens: the plan
+    of the mission without faults, and the loss never declared."""
+    for faults in ({"leader_lost": 1.7e308}, {"link_lost": [{"uavs": [0, 1], "time": 1.7e308}]},
+                   _lost(1, 1.7e308)):  # fmt: skip
+        assert _spans(_near(faults).fault_plan) == [(0, 300, list(range(6)), [0] * 6, False)]
+    plan = _near(_lost(1, 10.0, timeout=1.7e308)).fault_plan
+    assert _spans(plan) == [(0, 100, list(range(6)), [0] * 6, False),
+                            (100, 300, list(range(6)), [0, 1, 0, 0, 0, 0], False)]  # fmt: skip
+
+
+def test_a_replanning_with_gilbert_elliott_links_flies_on():
+    """The re-planned scenario (a dump of the mission's, its ``links.loss = 0`` written
+    out) is valid with the Gilbert-Elliott model."""
+    links = {"loss_model": "gilbert", "p_good_bad": 0.1, "p_bad_good": 0.5}
+    plan = _near({"leader_lost": 1.0, "timeout": 0.5}, 3.0, links=links).fault_plan
+    assert plan.phases[-1].scenario.links.loss_model == "gilbert"
+    assert plan.phases[-1].scenario.uavs.count == 5
+
+
 @pytest.mark.parametrize(("leader", "lost", "elected"), [(0, 0, 1), (3, 3, 0), (5, 5, 0)])
 def test_the_leader_lost_is_replaced_by_the_lowest_index(leader, lost, elected):
     plan = _near({"leader_lost": 10.0}, uavs={"leader": leader}).fault_plan

@@ -19,11 +19,12 @@ import pytest
 import crlbswarm as cs
 from crlbswarm import control
 from crlbswarm.counter_rng import LINKS, philox4x32, stream_key
-from crlbswarm.errors import ScenarioError
+from crlbswarm.errors import FieldError, ScenarioError
 from crlbswarm.graphs import ring_adjacency
 from crlbswarm.links import (
     DRAW_BATCH_PAIRS,
     LINK_SERIES,
+    MAX_PERIOD_STEPS,
     LinksConfig,
     candidate_links,
     exchange,
@@ -450,6 +451,10 @@ def test_a_rate_of_one_message_per_mission_is_accepted():
         ({"rate": 1e-300}, {}, "links.rate"),  # (sends less than once in the 5 s mission)
         ({"rate": 0.1}, {}, "links.rate"),
         ({"rate": 1e-300}, {"control": {"epsilon": "auto", "gamma": "auto"}}, "links.rate"),
+        ({"rate": 5e-324}, {}, "links.rate"),  # (rate x time.step underflows to 0)
+        ({"delay": 50}, {}, "links.delay"),  # (the 5 s mission's 50 steps: nothing arrives)
+        ({"loss_model": "gilbert", "p_good_bad": 0.1, "p_bad_good": 0.5, "loss": 1e-9}, {},
+         "links.loss"),
         ({"range": -5.0}, {}, "links.range"),
         ({"loss_model": "burst"}, {}, "links.loss_model"),
         ({"p_good_bad": 0.1}, {}, "links.p_good_bad"),
@@ -468,6 +473,50 @@ def test_bad_links_are_one_line_naming_the_field(links, tables, field):
     message = str(info.value)
     assert "\n" not in message
     assert f": {field}: " in message
+
+
+def test_a_delay_one_step_shorter_than_the_mission_is_accepted():
+    assert _paper({"delay": 49}).links is not None
+
+
+def test_a_gilbert_elliott_table_round_trips_through_toml_and_a_dump():
+    """Its ``loss = 0.0`` (the default, written out by a dump) is accepted."""
+    sc = _paper({"loss_model": "gilbert", "p_good_bad": 0.1, "p_bad_good": 0.5})
+    assert cs.Scenario.from_toml(sc.to_toml()) == sc
+    assert cs.Scenario.from_dict(sc.model_dump()) == sc
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.1, math.nan, math.inf, "0.1"])
+def test_the_periods_of_a_bad_time_step_are_one_line(dt):
+    links = LinksConfig(rate=5.0, timeout=1.0)
+    for method in (links.period, links.largest_age, links.timeout_steps):
+        with pytest.raises(FieldError, match=r"^dt: "):
+            method(dt)
+
+
+@pytest.mark.parametrize("rate", [1e-310, 5e-324])
+def test_a_rate_whose_period_overflows_never_sends_again(rate):
+    links = LinksConfig(rate=rate)
+    assert links.period(0.1) == MAX_PERIOD_STEPS
+    assert links.largest_age(0.1) == MAX_PERIOD_STEPS - 1
+    delivered, delay, _ = message_fates(links, 0, 1, 2, 1000)
+    assert delivered.tolist() == [True]  # (step 0 only)
+    assert delay.tolist() == [0]
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        ((0, 2, 2, 10), "receiver"),  # (no link to itself)
+        ((0, 1, 2**30, 10), "receiver"),  # (4 b + kind would wrap the counter's word)
+        ((0, 2**31 - 1, 0, 10), "sender"),
+        ((0, 1, 2, 2**32), "steps"),  # (72 GB of fates: refused before allocating)
+    ],
+)
+def test_bad_message_fates_are_one_line(args, field, monkeypatch):
+    monkeypatch.setattr("crlbswarm._validation.memory_room", lambda: 8 * 2**30)
+    with pytest.raises(FieldError, match=rf"^{field}: "):
+        message_fates(LinksConfig(loss=0.2), *args)
 
 
 def test_links_with_several_targets_are_refused():

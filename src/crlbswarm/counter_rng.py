@@ -229,6 +229,10 @@ def uniform32(word):
     float
         A multiple of ``2**-32`` in ``[2**-32, 1]``.
 
+    Notes
+    -----
+    Compiled kernel, no checks (only the word's low 32 bits count).
+
     Examples
     --------
     >>> uniform32(0) == 2.0**-32, uniform32(2**32 - 1)
@@ -302,6 +306,12 @@ def uniform_quad(k0, k1, c0, c1, c2, c3):
         :func:`uniform32` of the words ``x0 .. x3``: twice the uniforms of
         :func:`uniform_pair` per block, at a resolution of ``2**-32`` (the link layer's
         message draws, :func:`crlbswarm.links.pair_block`).
+
+    Notes
+    -----
+    Compiled kernel, no checks: each word's low 32 bits count (a
+    negative word wraps), and an argument that is not an integer below ``2**64`` is a
+    typing or overflow error of the compiler.
     """
     x0, x1, x2, x3 = philox4x32(c0, c1, c2, c3, k0, k1)
     return uniform32(x0), uniform32(x1), uniform32(x2), uniform32(x3)

@@ -74,6 +74,7 @@ __all__ = [
     "UavLoss",
     "check_faults",
     "decide",
+    "fault_step",
     "phase_scenario",
     "plan_faults",
     "swarm_links",
@@ -360,16 +361,37 @@ def _events(sc: Scenario) -> tuple[dict[int, list[int | str]], dict[int, list[tu
     dt, k_steps = sc.time.step, sc.time.steps
     losses: dict[int, list[int | str]] = {}
     for loss in faults.uav_lost:
-        losses.setdefault(round(loss.time / dt), []).append(loss.uav)
+        losses.setdefault(fault_step(loss.time, dt, k_steps), []).append(loss.uav)
     if faults.leader_lost is not None:
-        losses.setdefault(round(faults.leader_lost / dt), []).append("leader")
+        losses.setdefault(fault_step(faults.leader_lost, dt, k_steps), []).append("leader")
     cuts: dict[int, list[tuple[int, int]]] = {}
     for cut in faults.link_lost:
         a, b = sorted(cut.uavs)
-        cuts.setdefault(round(cut.time / dt), []).append((a, b))
+        cuts.setdefault(fault_step(cut.time, dt, k_steps), []).append((a, b))
     losses = {k: v for k, v in losses.items() if k < k_steps}
     cuts = {k: v for k, v in cuts.items() if k < k_steps}
-    return losses, cuts, max(1, math.ceil(faults.timeout / dt - 1e-9))
+    return losses, cuts, max(1, math.ceil(min(faults.timeout / dt, k_steps + 1.0) - 1e-9))
+
+
+def fault_step(time: float, dt: float, k_steps: int) -> int:
+    """The step at which a fault of the ``[faults]`` table happens.
+
+    Parameters
+    ----------
+    time : float
+        Its time, s (>= 0, finite).
+    dt : float
+        The time step, s.
+    k_steps : int
+        The mission's steps, K.
+
+    Returns
+    -------
+    int
+        ``round(time / dt)``, or ``K + 1`` for any time beyond the mission's end (after
+        it: the fault never happens; a time of 1e308 s is no overflow).
+    """
+    return round(min(time / dt, k_steps + 1.0))
 
 
 def plan_faults(sc: Scenario) -> FaultPlan:

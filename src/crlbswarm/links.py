@@ -96,6 +96,8 @@ __all__ = [
     "LOSS_MODELS",
     "MAX_ALL_PAIRS_UAVS",
     "MAX_DELAY",
+    "MAX_LINK_UAV",
+    "MAX_PERIOD_STEPS",
     "STATE_HEADER",
     "LinkModel",
     "LinkState",
@@ -132,6 +134,15 @@ __all__ = [
 
 #: Largest delay of a message, steps (each run keeps this many past states per UAV).
 MAX_DELAY = 1000
+
+#: Longest send period or timeout, steps (:meth:`LinksConfig.period`,
+#: :meth:`LinksConfig.timeout_steps`): beyond any mission, and two periods plus the largest
+#: delay within an int64.
+MAX_PERIOD_STEPS = 2**60
+
+#: Largest index of a UAV whose messages the counter tells apart (:func:`pair_block`: the
+#: counter's 32-bit word ``4 b + kind``).
+MAX_LINK_UAV = 2**30 - 1
 
 #: Most UAVs of a mission whose range links every pair (``use_graph = false``): every
 #: ordered pair is a candidate link, M (M - 1) of them.
@@ -231,7 +242,7 @@ class LinksConfig(ConfigModel):
                 if getattr(self, name) is not None:
                     raise FieldError(f"links.{name}", "applies to loss_model 'gilbert' only")
         else:
-            if "loss" in self.model_fields_set:
+            if self.loss != 0.0:  # (0, the default, as a dump of the table writes it)
                 raise FieldError(
                     "links.loss", "does not apply to loss_model 'gilbert' (loss_good, loss_bad)"
                 )
@@ -252,11 +263,18 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            The send period, steps (1 without ``rate``).
+            The send period, steps (1 without ``rate``; at most :data:`MAX_PERIOD_STEPS`:
+            a rate so low never sends again in any mission).
+
+        Raises
+        ------
+        FieldError
+            ``dt``, unless a finite number > 0.
         """
+        dt = _v.positive_scalar(dt, "dt")
         if self.rate is None:
             return 1
-        return max(1, round(1.0 / (self.rate * dt)))
+        return max(1, round(_send_interval(self.rate, dt)))
 
     @property
     def largest_delay(self) -> int:
@@ -292,11 +310,27 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            Steps (at most ``2**62``: a longer timeout never goes stale in any mission).
+            Steps (at most :data:`MAX_PERIOD_STEPS`: a longer timeout never goes stale in
+            any mission).
+
+        Raises
+        ------
+        FieldError
+            ``dt``, unless a finite number > 0.
         """
+        dt = _v.positive_scalar(dt, "dt")
         if self.timeout is None:
             return 2 * self.period(dt) + self.largest_delay
-        return math.floor(min(self.timeout / dt, 2.0**62) + 1e-9)
+        return math.floor(min(self.timeout / dt, float(MAX_PERIOD_STEPS)) + 1e-9)
+
+
+def _send_interval(rate: float, dt: float) -> float:
+    """``1 / (rate dT)``, steps between two messages, at most :data:`MAX_PERIOD_STEPS` (a
+    product that underflows to 0 too: such a rate never sends again)."""
+    product = rate * dt
+    if product > 0.0:
+        return min(1.0 / product, float(MAX_PERIOD_STEPS))
+    return float(MAX_PERIOD_STEPS)
 
 
 def all_pairs_adjacency(n_uavs: int) -> Adjacency:
@@ -342,10 +376,16 @@ def check_link_timing(links: LinksConfig, dt: float, steps: int) -> None:
     ------
     FieldError
         Naming the field: a rate so low that a UAV sends once every more steps than the
-        mission has, or a timeout shorter than a send period plus the largest delay (even
-        a perfect link would go stale).
+        mission has, a delay as long as the mission (no message would arrive in it), or a
+        timeout shorter than a send period plus the largest delay (even a perfect link
+        would go stale).
     """
-    if links.rate is not None and 1.0 / (links.rate * dt) > steps + 0.5:
+    if links.delay >= steps:
+        raise FieldError(
+            "links.delay", f"{links.delay} steps is not shorter than the mission's {steps} "
+            f"steps of time.duration: no message would arrive in it",
+        )  # fmt: skip
+    if links.rate is not None and _send_interval(links.rate, dt) > steps + 0.5:
         raise FieldError(
             "links.rate", f"{links.rate:g} per second sends less than once in the "
             f"{steps * dt:g} s mission: at least 1/time.duration = {1.0 / (steps * dt):.4g}",
@@ -1325,12 +1365,12 @@ def message_fates(
     seed : int
         The run's seed.
     sender : int
-        The sending UAV.
+        The sending UAV, ``0 .. 2**30 - 1`` (the counter's word ``4 b + kind`` holds it).
     receiver : int
-        The receiving UAV.
+        The receiving UAV, another one.
     steps : int
         The messages sent at the sending steps below ``steps`` (every
-        :meth:`LinksConfig.period` steps from 0).
+        :meth:`LinksConfig.period` steps from 0), ``1 .. 2**32``.
     dt : float, default 0.1
         The time step, s (for the period).
 
@@ -1355,9 +1395,13 @@ def message_fates(
     dt = _v.positive_scalar(dt, "dt")
     period = links.period(dt)
     count = _v.count(steps, "steps", 1, 2**32)
+    sender = _v.count(sender, "sender", 0, MAX_LINK_UAV)
+    receiver = _v.count(receiver, "receiver", 0, MAX_LINK_UAV)
+    if receiver == sender:
+        raise FieldError("receiver", f"must differ from the sender, {sender}")
+    messages = -(-count // period)
+    _v.check_memory(18.0 * messages, "steps", f"{messages:,} messages", "ask for fewer steps")
     at = np.arange(0, count, period, dtype=np.int64)
-    sender = _v.count(sender, "sender", 0, 2**31 - 1)
-    receiver = _v.count(receiver, "receiver", 0, 2**31 - 1)
     one = Adjacency(np.array([0, 1, 2], np.int64), np.array([1, 0], np.int64))
     model = link_model(links.model_copy(update={"range": None, "use_graph": True}), one, 0, dt)
     delivered = np.empty(at.size, dtype=bool)

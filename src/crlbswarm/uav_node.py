@@ -58,7 +58,7 @@ from . import _validation as _v
 from .counter_rng import RANGE_NOISE, normal_pair
 from .errors import FieldError
 from .estimation import noisy_range
-from .faults import decide, phase_scenario, swarm_links
+from .faults import decide, fault_step, phase_scenario, swarm_links
 from .flynet import (
     DONE,
     LOG,
@@ -860,9 +860,10 @@ def kill_steps(run: FlyRun, m: int, options: FlightOptions) -> tuple[set[int], i
         steps.add(round(options.kill[1] / dt))
     leader = -1
     if faults is not None:
-        steps |= {round(loss.time / dt) for loss in faults.uav_lost if loss.uav == m}
+        k_steps = run.k_steps
+        steps |= {fault_step(loss.time, dt, k_steps) for loss in faults.uav_lost if loss.uav == m}
         if faults.leader_lost is not None:
-            leader = round(faults.leader_lost / dt)
+            leader = fault_step(faults.leader_lost, dt, k_steps)
     return steps, leader
 
 
