@@ -519,6 +519,8 @@ def test_campaigns_sweep_faults_fields():
         ({"link_lost": [{"uavs": [0], "time": 1.0}]}, {}, "faults.link_lost.0.uavs", "2 items"),
         ({"uav_lost": [{"uav": 1}]}, {}, "faults.uav_lost.0.time", "missing"),
         ({"uav_los": []}, {}, "faults.uav_los", "unknown field"),
+        ({"timeout": 0.3}, {"links": {"delay": 2, "rate": 5.0}}, "faults.timeout",
+         "shorter than the links' send period plus their largest delay, 0.4 s"),
     ],
 )  # fmt: skip
 def test_bad_faults_are_one_line_naming_the_field(faults, tables, field, reason):

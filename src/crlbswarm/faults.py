@@ -158,8 +158,9 @@ def check_faults(sc: Scenario) -> None:
     Raises
     ------
     FieldError
-        Naming the field: a UAV or link that does not exist, a UAV lost twice, or a layer
-        the faults do not support yet.
+        Naming the field: a UAV or link that does not exist, a UAV lost twice, a layer
+        the faults do not support yet, or, with a ``[links]`` table, a timeout shorter than
+        a send period plus the largest delay (a UAV that flies would look silent).
     """
     faults = sc.faults
     assert faults is not None
@@ -170,6 +171,14 @@ def check_faults(sc: Scenario) -> None:
     for name, on, what in unsupported:
         if on:
             raise FieldError("faults", f"is not supported yet with {what} ({name})")
+    links, dt = sc.links, sc.time.step
+    if links is not None:
+        gap = (links.period(dt) + links.largest_delay) * dt
+        if faults.timeout < gap - 1e-9:
+            raise FieldError(
+                "faults.timeout", f"{faults.timeout:g} s is shorter than the links' send "
+                f"period plus their largest delay, {gap:g} s: a UAV that flies would look lost",
+            )  # fmt: skip
     n = sc.uavs.count
     seen: set[int] = set()
     for i, loss in enumerate(faults.uav_lost):
