@@ -263,8 +263,9 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            The send period, steps (1 without ``rate``; at most :data:`MAX_PERIOD_STEPS`:
-            a rate so low never sends again in any mission).
+            The send period, steps (1 without ``rate``; at most
+            :data:`~crlbswarm.links.MAX_PERIOD_STEPS`: a rate so low never sends again in
+            any mission).
 
         Raises
         ------
@@ -310,8 +311,8 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            Steps (at most :data:`MAX_PERIOD_STEPS`: a longer timeout never goes stale in
-            any mission).
+            Steps (at most :data:`~crlbswarm.links.MAX_PERIOD_STEPS`: a longer timeout
+            never goes stale in any mission).
 
         Raises
         ------
