@@ -399,3 +399,21 @@ def test_flight_options_name_the_field():
     with pytest.raises(ValueError, match="mode"):
         FlightOptions(mode="bogus")
     assert FlightOptions().mode == "stepped"
+
+
+def test_an_injected_delay_resolves_the_auto_formation_gain():
+    """--delay d flies an "auto" epsilon resolved for d steps (the simulator's rule for a
+    [links] table's delay); explicit gains, and no delay, fly the scenario as it is."""
+    from crlbswarm.graphs import auto_formation_step
+    from crlbswarm.uav_node import delayed_gains, fly_run
+
+    safe, paper = load_scenario("paper_safe"), load_scenario("paper")
+    flown = fly_run(safe, 0, 3).scenario
+    assert flown.gains.epsilon == auto_formation_step(safe.adjacency, 3)
+    assert flown.gains.gamma == safe.gains.gamma
+    same, before = flown.model_dump(), safe.model_dump()
+    same["control"].pop("epsilon")
+    before["control"].pop("epsilon")
+    assert same == before
+    assert fly_run(safe, 0).scenario is safe
+    assert delayed_gains(paper, 3) is paper

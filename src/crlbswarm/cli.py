@@ -671,7 +671,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
             connect=tuple(args.connect or ()), mode=args.mode, timeout=args.timeout,
             loss=args.loss, delay=args.delay, parent=args.parent, kill=args.kill,
         )  # fmt: skip
-        run = fly_run(scenario, args.seed)
+        run = fly_run(scenario, args.seed, args.delay)
         check_kill(args.kill, run)
         if args.recorder:
             report = run_recorder(run, args.out, options, args.force)

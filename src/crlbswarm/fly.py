@@ -684,7 +684,7 @@ def fly(
         On Ctrl-C, after every member has stopped (the recorder wrote what it had).
     """
     import_zenoh()
-    run = fly_run(scenario, seed)
+    run = fly_run(scenario, seed, delay)
     n = run.m_uavs
     options = FlightOptions(key=key or f"{DEFAULT_KEY}/{uuid.uuid4().hex[:12]}", mode=mode,
                             timeout=timeout, loss=loss, delay=delay,

@@ -62,6 +62,7 @@ from .faults import decide, fault_step, phase_scenario, swarm_links
 from .flynet import (
     DONE,
     LOG,
+    MAX_DELAY,
     NO_STAMP,
     START_TIMEOUT,
     STATE,
@@ -78,6 +79,7 @@ from .flynet import (
     member_name,
     state_key,
 )
+from .graphs import auto_formation_step
 from .mission_kernel import (
     FILTER_ITERATIONS,
     UNPLANNED,
@@ -110,6 +112,7 @@ __all__ = [
     "FlyRun",
     "UavProcess",
     "compile_laws",
+    "delayed_gains",
     "fly_run",
     "kill_steps",
     "leader_reference",
@@ -220,7 +223,7 @@ class FlyRun:
         return [int(p) for p in indices[indptr[m] : indptr[m + 1]]]
 
 
-def fly_run(scenario: Scenario, seed: int) -> FlyRun:
+def fly_run(scenario: Scenario, seed: int, delay: int = 0) -> FlyRun:
     """The compiled mission's arguments and the inputs of the run with ``seed``, as
     :func:`crlbswarm.simulate` makes them: every process of a flight computes them itself.
 
@@ -230,6 +233,10 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
         The scenario (one target).
     seed : int
         The seed.
+    delay : int, default 0
+        The delay injected at the senders, steps: a ``"auto"`` formation gain is resolved
+        for it (:func:`delayed_gains`), as the simulator resolves it for a ``[links]``
+        table's delay.
 
     Returns
     -------
@@ -261,7 +268,8 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
             "faults.link_lost", "crlbswarm fly cannot cut a link yet (it flies the UAVs "
             "lost: their processes kill themselves at their times); remove the links lost",
         )  # fmt: skip
-    sc, seed = scenario, _v.seed(seed, "seed")
+    seed = _v.seed(seed, "seed")
+    sc = delayed_gains(scenario, _v.count(delay, "delay", 0, MAX_DELAY))
     scene, index, ctl, rule, const = kernel_arguments(sc, 0)
     start = start_positions(sc, seed)
     centre = np.asarray(sc.target, dtype=float) + sc.formation_design.centre_offset
@@ -285,6 +293,33 @@ def fly_run(scenario: Scenario, seed: int) -> FlyRun:
         target_velocity=np.ascontiguousarray(truth[:, 2:]), x0=x0, keys=run_keys(seed),
         ids=np.arange(m, dtype=np.int64),
     )  # fmt: skip
+
+
+def delayed_gains(scenario: Scenario, delay: int) -> Scenario:
+    """The scenario flown with ``delay`` steps injected at the senders: its ``"auto"``
+    formation gain resolved for that age of the neighbours' states
+    (:func:`crlbswarm.graphs.auto_formation_step`, the rule of a ``[links]`` table in the
+    simulator); the scenario itself without delay or with an explicit gain. A swarm that
+    re-forms after a loss keeps that gain.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    delay : int
+        Steps, >= 0.
+
+    Returns
+    -------
+    Scenario
+        The scenario, with ``control.epsilon`` a number when it was ``"auto"`` and
+        ``delay > 0``.
+    """
+    if delay == 0 or scenario.control.epsilon != "auto":
+        return scenario
+    data = scenario.model_dump(exclude_none=True)
+    data["control"]["epsilon"] = auto_formation_step(scenario.adjacency, delay)
+    return Scenario.from_dict(data, source=f"{scenario.name} with {delay} steps of delay")
 
 
 # ---------------------------------------------------------------------------------------
