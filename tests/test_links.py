@@ -410,7 +410,7 @@ def test_auto_gains_are_resolved_for_the_links_largest_age():
 
 def test_auto_gains_converge_with_delay():
     """paper_safe ("auto" gains) with 3 steps of delay: every run converges (with the gains
-    of the state of the step none did: the shape oscillated, docs/links.md sec. 9)."""
+    of the state of the step none did: the formation crawled, docs/control.md sec. 6)."""
     data = cs.load_scenario("paper_safe").model_dump(exclude_none=True)
     data["links"] = {"loss": 0.2, "delay": 3}
     result = cs.simulate(cs.Scenario.from_dict(data, source="test"), seeds=range(3),

@@ -144,8 +144,8 @@ class ControlGains(ConfigModel, metaclass=_OneLineErrors):
     epsilon: AutoGain = Field(
         "auto",
         description="formation gain epsilon per step, eqs. (16), (19) (paper: 0.01); "
-        '"auto": 1/lambda_max(L), the fastest step without oscillation; with delayed '
-        "links sin(pi/(2(2d+1)))/lambda_max(L), d = links' largest age in steps",
+        '"auto": 1/lambda_max(L), the fastest step without oscillation; with links d steps '
+        "old min(1/lambda_max(L), 0.15/(max degree d))",
     )
     gamma: AutoGain = Field(
         "auto",

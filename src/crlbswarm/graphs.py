@@ -39,13 +39,14 @@ if TYPE_CHECKING:  # networkx and scipy.sparse are imported when a graph is buil
     import scipy.sparse as sp
 
 __all__ = [
+    "DELAY_DRAG",
     "GRAPH_KINDS",
     "Adjacency",
     "auto_consensus_step",
     "auto_formation_step",
     "communication_graph",
     "consensus_step_limit",
-    "delayed_step_factor",
+    "delayed_speed_factor",
     "formation_step_limit",
     "ring_adjacency",
     "settling_steps",
@@ -398,15 +399,19 @@ def formation_step_limit(adjacency: Adjacency) -> float:
 def auto_formation_step(adjacency: Adjacency, delay: int = 0) -> float:
     r"""The formation gain of ``epsilon = "auto"``: :math:`1/\lambda_{\max}(L)`, or, when
     the neighbours' positions are up to ``delay`` steps old,
-    :math:`\sin(\pi/(2(2d+1)))/\lambda_{\max}(L)`.
+    :math:`\min(1/\lambda_{\max}(L),\ 0.15/(\Delta d))`.
 
-    Half the stability limit: the fastest step at which every mode of the shape error,
-    :math:`1 - \varepsilon\lambda_i`, decays without changing sign (the step that minimises
-    the spectral radius, :math:`2/(\lambda_2 + \lambda_{\max})`, would make the stiffest mode
-    alternate sign every step: the UAVs would zig-zag). With a delay of :math:`d` steps
-    the limit is that of the delayed mode :math:`z_{k+1} = z_k - \varepsilon\lambda_i
-    z_{k-d}` (:func:`delayed_step_factor`), and the gain is again half of it; for
-    :math:`d = 0` the two are the same. Not in the paper (``docs/control.md`` sec. 6).
+    Without delay, half the stability limit: the fastest step at which every mode of the
+    shape error, :math:`1 - \varepsilon\lambda_i`, decays without changing sign (the step
+    that minimises the spectral radius, :math:`2/(\lambda_2 + \lambda_{\max})`, would make
+    the stiffest mode alternate sign every step: the UAVs would zig-zag). With a delay of
+    :math:`d` steps eq. (19) steers each UAV toward where its neighbours were :math:`d`
+    steps before: a formation that moves is held back, and travels at
+    :func:`delayed_speed_factor` :math:`= 1/(1 + \varepsilon\Delta d)` of its speed
+    (:math:`\Delta` the largest degree). The gain keeps :math:`\varepsilon\Delta d \le`
+    :data:`DELAY_DRAG` (87 % of the speed). It stays stable for any delay: below
+    :math:`1/\Delta` each UAV's update is a convex combination of its own position and its
+    neighbours' received ones. Not in the paper (``docs/control.md`` sec. 6).
 
     Parameters
     ----------
@@ -422,38 +427,54 @@ def auto_formation_step(adjacency: Adjacency, delay: int = 0) -> float:
         :math:`\varepsilon`, per step.
     """
     d = _v.count(delay, "delay", 0)
+    step = 0.5 * formation_step_limit(adjacency)
     if d == 0:
-        return 0.5 * formation_step_limit(adjacency)
-    return 0.25 * delayed_step_factor(d) * formation_step_limit(adjacency)
+        return step
+    degree = float(_check_adjacency(adjacency).degrees.max())
+    return min(step, DELAY_DRAG / (degree * d))
 
 
-def delayed_step_factor(delay: int) -> float:
-    r"""The stability limit of the delayed mode: :math:`2\sin(\pi/(2(2d+1)))`.
+#: The largest :math:`\varepsilon\Delta d` of ``epsilon = "auto"`` with delayed links
+#: (:func:`auto_formation_step`): the formation keeps ``1 / 1.15``, 87 %, of its speed.
+#: Chosen from measured missions (``docs/control.md`` sec. 6): a smaller value corrects the
+#: shape too slowly, a larger one slows the travel.
+DELAY_DRAG = 0.15
 
-    The scalar recurrence :math:`z_{k+1} = z_k - a\,z_{k-d}` decays if and only if
-    :math:`0 < a < 2\sin(\pi/(2(2d+1)))`: 2 without delay, 1 for one step, 0.445 for three,
-    0.150 for ten. :func:`auto_formation_step` applies it to each mode of the Laplacian,
-    :math:`a = \varepsilon\lambda_i`, as if the whole update were ``delay`` steps old (a
-    UAV's own position is current: the bound is on the safe side, and the missions confirm
-    it, ``docs/links.md`` sec. 9).
+
+def delayed_speed_factor(epsilon: float, degree: float, delay: int) -> float:
+    r"""The speed of a formation whose law acts on neighbours' positions ``delay`` steps
+    old, as a fraction of its speed without delay: :math:`1/(1 + \varepsilon\Delta d)`.
+
+    A formation translating by :math:`s` per step, each UAV of degree :math:`\Delta`
+    steering with eq. (19) toward its neighbours' positions of :math:`d` steps before
+    (:math:`\varepsilon\Delta d s` behind where they are) while the consensus velocity
+    carries it by :math:`v\Delta T`: :math:`s = v\Delta T - \varepsilon\Delta d\,s`.
+    Exact for a regular graph in steady translation.
 
     Parameters
     ----------
+    epsilon : float
+        The formation gain, per step.
+    degree : float
+        :math:`\Delta`, neighbours per UAV.
     delay : int
         :math:`d`, steps.
 
     Returns
     -------
     float
-        The limit of :math:`a`.
+        :math:`1/(1 + \varepsilon\Delta d)`, in (0, 1].
 
     Examples
     --------
-    >>> round(delayed_step_factor(0), 12), round(delayed_step_factor(1), 12)
-    (2.0, 1.0)
+    >>> delayed_speed_factor(0.25, 2, 3)  # paper_safe's gain without the rule: 40 %
+    0.4
     """
-    d = _v.count(delay, "delay", 0)
-    return 2.0 * math.sin(math.pi / (2 * (2 * d + 1)))
+    eps = _v.positive_scalar(epsilon, "epsilon")
+    deg = _v.scalar(degree, "degree")
+    if deg < 0:
+        raise FieldError("degree", f"must be >= 0, got {deg:g}")
+    return 1.0 / (1.0 + eps * deg * _v.count(delay, "delay", 0))
 
 
 def auto_consensus_step(adjacency: Adjacency, leader: int) -> float:
