@@ -204,6 +204,9 @@ def _reference_messages(model, seed, q, v, eta, leader, k_steps):
         ({"range": 7.0, "use_graph": False, "delay": 2}, 6),
         # more than DRAW_BATCH_PAIRS pairs: one turn drawn at a time
         ({"range": 7.0, "use_graph": False, "loss": 0.4, "delay": 1, "delay_max": 3}, 13),
+        ({"range": 7.0, "use_graph": False, "loss": 0.3, "rate": 3.3, "delay_max": 2}, 13),
+        ({"loss_model": "gilbert", "p_good_bad": 0.3, "p_bad_good": 0.4, "loss_good": 0.1,
+          "loss_bad": 0.8, "rate": 2.5, "range": 9.0}, 6),
     ],
 )  # fmt: skip
 def test_message_process_matches_a_plain_python_rerun(links, m_uavs):
@@ -448,7 +451,7 @@ def test_a_rate_of_one_message_per_mission_is_accepted():
         ({"delay": 2000}, {}, "links.delay"),
         ({"delay": 3, "delay_max": 2}, {}, "links.delay_max"),
         ({"rate": 0}, {}, "links.rate"),
-        ({"rate": 1e-300}, {}, "links.rate"),  # (sends less than once in the 5 s mission)
+        ({"rate": 1e-300}, {}, "links.rate"),  # (no second message in the 5 s mission)
         ({"rate": 0.1}, {}, "links.rate"),
         ({"rate": 1e-300}, {"control": {"epsilon": "auto", "gamma": "auto"}}, "links.rate"),
         ({"rate": 5e-324}, {}, "links.rate"),  # (rate x time.step underflows to 0)

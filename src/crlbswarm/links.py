@@ -153,7 +153,7 @@ MAX_ALL_PAIRS_UAVS = 1000
 #: pairs, one turn at a time). Even: one Philox block serves two turns (:func:`pair_block`).
 DRAW_BATCH = 8
 
-#: Most pairs of UAVs for which a run draws :data:`DRAW_BATCH` sending steps at once.
+#: Most pairs of UAVs for which a run draws :data:`DRAW_BATCH` sending turns at once.
 DRAW_BATCH_PAIRS = 64
 
 #: Words at the start of ``LinkState.ints``: M, E, ``delay_max + 1`` and the uniforms
@@ -388,8 +388,9 @@ def check_link_timing(links: LinksConfig, dt: float, steps: int) -> None:
         )  # fmt: skip
     if links.rate is not None and _send_interval(links.rate, dt) > steps + 0.5:
         raise FieldError(
-            "links.rate", f"{links.rate:g} per second sends less than once in the "
-            f"{steps * dt:g} s mission: at least 1/time.duration = {1.0 / (steps * dt):.4g}",
+            "links.rate", f"{links.rate:g} per second sends no second message within the "
+            f"{steps * dt:g} s mission: at least about 1/time.duration = "
+            f"{1.0 / (steps * dt):.4g}",
         )  # fmt: skip
     period, largest = links.period(dt), links.largest_delay
     if links.timeout is not None and links.timeout_steps(dt) < period + largest:
@@ -531,7 +532,7 @@ class LinkModel(NamedTuple):
     n_pairs : int
         Number of pairs of UAVs linked in at least one direction, P.
     batch : int
-        Sending steps whose uniforms are drawn at once (:data:`DRAW_BATCH` for at most
+        Sending turns whose uniforms are drawn at once (:data:`DRAW_BATCH` for at most
         :data:`DRAW_BATCH_PAIRS` pairs, else 1).
     table : ndarray of int64
         :attr:`indptr`, :attr:`senders`, :attr:`receivers`, :attr:`law`,
@@ -1011,7 +1012,7 @@ def draw_kind(first, k0, k1, lo, hi, kind, batch, row):
 
     One block at a time, in scalar code: the compiler would otherwise compute several at
     once with wide vector multiplies (AVX-512), whose use lowers the core's clock for
-    a while after (the whole mission then runs slower, measured: about 5 % of a batch of
+    a while after (the whole mission then runs slower, measured: about 4 % of a batch of
     paper missions). The loop's step depends on a uniform (always in (0, 1], so it is
     always 1): the compiler cannot count the iterations, and keeps the loop scalar."""
     p = lo.shape[0]
