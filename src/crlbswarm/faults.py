@@ -173,7 +173,7 @@ def check_faults(sc: Scenario) -> None:
             raise FieldError("faults", f"is not supported yet with {what} ({name})")
     links, dt = sc.links, sc.time.step
     if links is not None:
-        gap = (links.period(dt) + links.largest_delay) * dt
+        gap = links.silence_steps(dt) * dt
         if faults.timeout < gap - 1e-9:
             raise FieldError(
                 "faults.timeout", f"{faults.timeout:g} s is shorter than the links' send "

@@ -113,6 +113,7 @@ __all__ = [
     "draw_messages",
     "exchange",
     "in_range",
+    "layouts",
     "link_ages",
     "link_model",
     "link_pairs",
@@ -127,9 +128,11 @@ __all__ = [
     "neighbour_tables",
     "pair_block",
     "pair_draws",
+    "pending_slot",
     "send_gilbert",
     "send_messages",
     "state_layout",
+    "turn_draws",
 ]
 
 #: Largest delay of a message, steps (each run keeps this many past states per UAV).
@@ -282,9 +285,26 @@ class LinksConfig(ConfigModel):
         """The largest delay of a message, steps (``delay_max``, or the fixed ``delay``)."""
         return self.delay if self.delay_max is None else self.delay_max
 
+    def silence_steps(self, dt: float) -> int:
+        """The longest a live link can go without a message when none is lost, steps: a
+        send period plus the largest delay (the shortest timeout that a perfect link never
+        reaches: ``links.timeout``, ``faults.timeout``).
+
+        Parameters
+        ----------
+        dt : float
+            The time step, s.
+
+        Returns
+        -------
+        int
+            ``period(dt) + largest_delay``.
+        """
+        return self.period(dt) + self.largest_delay
+
     def largest_age(self, dt: float) -> int:
         """The largest age of a neighbour's state when no message is lost, steps: the
-        largest delay plus a send period less one (``"auto"`` gains are stable for it,
+        largest delay plus a send period less one (``"auto"`` gains are resolved for it,
         :func:`crlbswarm.graphs.auto_formation_step`).
 
         Parameters
@@ -295,9 +315,9 @@ class LinksConfig(ConfigModel):
         Returns
         -------
         int
-            ``largest_delay + period(dt) - 1``.
+            ``silence_steps(dt) - 1``.
         """
-        return self.largest_delay + self.period(dt) - 1
+        return self.silence_steps(dt) - 1
 
     def timeout_steps(self, dt: float) -> int:
         """Age in steps beyond which a link is stale: ``timeout`` (rounded down), or two
@@ -321,7 +341,7 @@ class LinksConfig(ConfigModel):
         """
         dt = _v.positive_scalar(dt, "dt")
         if self.timeout is None:
-            return 2 * self.period(dt) + self.largest_delay
+            return self.period(dt) + self.silence_steps(dt)
         return math.floor(min(self.timeout / dt, float(MAX_PERIOD_STEPS)) + 1e-9)
 
 
@@ -392,11 +412,11 @@ def check_link_timing(links: LinksConfig, dt: float, steps: int) -> None:
             f"{steps * dt:g} s mission: at least about 1/time.duration = "
             f"{1.0 / (steps * dt):.4g}",
         )  # fmt: skip
-    period, largest = links.period(dt), links.largest_delay
-    if links.timeout is not None and links.timeout_steps(dt) < period + largest:
+    silence = links.silence_steps(dt)
+    if links.timeout is not None and links.timeout_steps(dt) < silence:
         raise FieldError(
             "links.timeout", f"{links.timeout:g} s is shorter than a send period plus the "
-            f"largest delay, {(period + largest) * dt:g} s: even a perfect link would go stale",
+            f"largest delay, {silence * dt:g} s: even a perfect link would go stale",
         )  # fmt: skip
 
 
@@ -742,6 +762,34 @@ def state_layout(m, e, d, w):
             act_senders, act_links, parent, ints, 0, e, 2 * e)  # fmt: skip
 
 
+@njit(cache=True, inline="always")
+def layouts(model):
+    """The layouts of the model's table (:func:`model_layout`) and of a run's state
+    (:func:`state_layout`), and the uniforms per kind of a batch of draws, ``2 batch P``:
+    ``(part, at, w)``."""
+    m, e, p, b = model.n_uavs, model.n_links, model.n_pairs, model.batch
+    w = 2 * b * p
+    return model_layout(m, e, p, b), state_layout(m, e, model.depth, w), w
+
+
+@njit(cache=True, inline="always")
+def pending_slot(e, now, delay, model, at):
+    """Where in ``ints`` link ``e``'s message sent at the step of slot ``now`` with
+    ``delay`` steps waits (slot ``(now + delay) % depth``, without a division: the delay
+    is below the depth)."""
+    depth = model.depth
+    slot = now + delay - depth if now + delay >= depth else now + delay
+    return at[7] + e * depth + slot
+
+
+@njit(cache=True, inline="always")
+def turn_draws(k, model, st, at):
+    """Where in ``floats`` the loss uniforms of the sending step ``k`` start (its turn's
+    within the batch of :attr:`LinkState.draws`; a link's is ``model.pair_slot`` further,
+    its delay and channel ones ``w`` and ``2 w`` further)."""
+    return at[5] + 2 * model.n_pairs * (k // model.period - st.ints[_U(at[9] + 2)])
+
+
 def link_state_bytes(model: LinkModel) -> int:
     """Bytes of one run's link state (:func:`link_state`).
 
@@ -783,12 +831,8 @@ class LinkState(NamedTuple):
     ints: np.ndarray
     flags: np.ndarray
 
-    def _at(self) -> tuple[int, ...]:
-        m, e, d, w = (int(x) for x in self.ints[:STATE_HEADER])
-        return (m, e, d, w, *state_layout(m, e, d, w))
-
     def _part(self, buf: np.ndarray, i: int) -> np.ndarray:
-        at = self._at()[4:]
+        at = state_layout(*(int(x) for x in self.ints[:STATE_HEADER]))
         return buf[at[i] : at[i + 1]]
 
     @property
@@ -796,20 +840,17 @@ class LinkState(NamedTuple):
         """Each UAV's broadcast state at the last D+1 sending steps, in slot
         ``step % (D+1)``: x, y, vx, vy, its :math:`\\eta` and that value's stamp; shape
         (D+1, M, 6)."""
-        m, _, d, _, *at = self._at()
-        return self.floats[at[0] : at[1]].reshape(d, m, 6)
+        return self._part(self.floats, 0).reshape(-1, int(self.ints[0]), 6)
 
     @property
     def recv_q(self) -> np.ndarray:
         """Per link, the last received position, m; shape (E, 2)."""
-        _, e, _, _, *at = self._at()
-        return self.floats[at[1] : at[2]].reshape(e, 2)
+        return self._part(self.floats, 1).reshape(-1, 2)
 
     @property
     def recv_v(self) -> np.ndarray:
         """Per link, the last received velocity, m/s; shape (E, 2)."""
-        _, e, _, _, *at = self._at()
-        return self.floats[at[2] : at[3]].reshape(e, 2)
+        return self._part(self.floats, 2).reshape(-1, 2)
 
     @property
     def eta(self) -> np.ndarray:
@@ -833,8 +874,7 @@ class LinkState(NamedTuple):
     def pending(self) -> np.ndarray:
         """Per link, the send step of the newest message arriving at each step (slot
         ``arrival % (D+1)``), -1 for none; shape (E, D+1)."""
-        _, e, d, _, *at = self._at()
-        return self.ints[at[7] : at[8]].reshape(e, d)
+        return self._part(self.ints, 7).reshape(-1, int(self.ints[2]))
 
     @property
     def stamp(self) -> np.ndarray:
@@ -886,8 +926,8 @@ class LinkState(NamedTuple):
 def link_state(model, m_uavs):
     """A run's link state at the start (:class:`LinkState`): nothing received, every
     UAV at :math:`\\eta = 1`."""
-    e, d, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
-    at = state_layout(m_uavs, e, d, w)
+    e, d = model.n_links, model.depth
+    at, w = layouts(model)[1:]
     floats = np.zeros(at[6])
     floats[at[3] : at[4]] = 1.0  # eta
     floats[at[4] : at[5]] = -1.0  # eta_stamp
@@ -959,7 +999,7 @@ def _neighbour_tables_kernel(links, lio, m_uavs, indptr, indices, q, v):
         st = link_state(links, m_uavs)
         key, series = lio
         e = links.n_links
-        at = state_layout(m_uavs, e, links.depth, 2 * links.batch * links.n_pairs)
+        at = layouts(links)[1]
         fl, it = st.floats, st.ints
         return (st, it[at[10] : at[11]], it[at[11] : at[12]], it[at[12] : at[13]],
                 fl[at[1] : at[2]].reshape(e, 2), fl[at[2] : at[3]].reshape(e, 2),
@@ -1045,12 +1085,10 @@ def draw_messages(first, k0, k1, model, st):
     uniforms (:func:`draw_kind`) in columns ``2 (b P + i)`` and the next
     (:data:`DRAW_BATCH`; the draws are functions of the counter, so drawing ahead
     changes none)."""
-    m, e, p, b = model.n_uavs, model.n_links, model.n_pairs, model.batch
-    part = model_layout(m, e, p, b)
+    part, at, w = layouts(model)
+    b = model.batch
     lo = model.table[part[5] : part[6]]
     hi = model.table[part[6] : part[7]]
-    w = 2 * b * p
-    at = state_layout(m, e, model.depth, w)
     if model.loss > 0.0 or model.gilbert:
         draw_kind(first, k0, k1, lo, hi, LOSS_DRAW, b, st.floats[at[5] : at[5] + w])
     if model.span > 1:
@@ -1091,7 +1129,7 @@ def broadcast(k, q, v, eta, leader, model, st):
     position, velocity, the :math:`\\eta` it knows and its stamp; the leader's :math:`\\eta`
     is ``eta``, stamped ``k``)."""
     m_uavs = q.shape[0]
-    at = state_layout(m_uavs, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    at = layouts(model)[1]
     fl = st.floats
     base = (k % model.depth) * m_uavs * 6
     for p in range(m_uavs):
@@ -1112,7 +1150,7 @@ def in_range(q, model, st):
     ``e`` are within range at the positions ``q`` (the distance squared at most
     ``model.range2``)."""
     n = model.n_links
-    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
+    part = layouts(model)[0]
     tab, flags, range2 = model.table, st.flags, model.range2
     for e in range(n):
         r, p = tab[_U(part[2] + e)], tab[_U(part[1] + e)]
@@ -1124,13 +1162,12 @@ def in_range(q, model, st):
 def send_gilbert(k, model, st):
     """:func:`send_messages` with the Gilbert-Elliott model (:func:`message_fate` moves
     each link's channel state). Returns ``(sent, delivered)``."""
-    n, depth, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
-    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
-    at = state_layout(model.n_uavs, n, depth, w)
+    n = model.n_links
+    part, at, w = layouts(model)
     tab, fl, it, flags = model.table, st.floats, st.ints, st.flags
-    now = k % depth
+    now = k % model.depth
     ranged = model.range2 < math.inf
-    draws = at[5] + 2 * model.n_pairs * (k // model.period - it[_U(at[9] + 2)])
+    draws = turn_draws(k, model, st, at)
     sent = delivered = 0
     for e in range(n):
         if ranged and not flags[_U(n + e)]:
@@ -1138,10 +1175,9 @@ def send_gilbert(k, model, st):
         sent += 1
         j = draws + tab[_U(part[4] + e)]
         ok, delay = message_fate(fl[_U(j)], fl[_U(j + w)], fl[_U(j + 2 * w)], e, model, flags)
-        if ok:  # (slots modulo depth without a division: delay < depth)
+        if ok:
             delivered += 1
-            slot = now + delay - depth if now + delay >= depth else now + delay
-            i = at[7] + e * depth + slot
+            i = pending_slot(e, now, delay, model, at)
             it[_U(i)] = max(it[_U(i)], k)
     return sent, delivered
 
@@ -1155,13 +1191,12 @@ def send_messages(k, model, st):
     draws (the messages are lost at random: a branch would be mispredicted)."""
     if model.gilbert:
         return send_gilbert(k, model, st)
-    n, depth, w = model.n_links, model.depth, 2 * model.batch * model.n_pairs
-    part = model_layout(model.n_uavs, n, model.n_pairs, model.batch)
-    at = state_layout(model.n_uavs, n, depth, w)
+    n = model.n_links
+    part, at, w = layouts(model)
     tab, fl, it, flags = model.table, st.floats, st.ints, st.flags
-    now = k % depth
+    now = k % model.depth
     ranged = model.range2 < math.inf
-    draws = at[5] + 2 * model.n_pairs * (k // model.period - it[_U(at[9] + 2)])
+    draws = turn_draws(k, model, st, at)
     loss, span, shortest = model.loss, model.span, model.delay
     sent = delivered = 0
     for e in range(n):
@@ -1169,8 +1204,7 @@ def send_messages(k, model, st):
         on = not ranged or flags[_U(n + e)] != 0
         ok = on and fl[_U(j)] > loss
         delay = shortest + int((1.0 - fl[_U(j + w)]) * span) if span > 1 else shortest
-        slot = now + delay - depth if now + delay >= depth else now + delay
-        i = at[7] + e * depth + slot
+        i = pending_slot(e, now, delay, model, at)
         it[_U(i)] = max(it[_U(i)], k if ok else -1)
         sent += on
         delivered += ok
@@ -1187,8 +1221,7 @@ def arrivals(k, leader, model, st):
     stamps of the links the laws may use (``k`` for none; the ages of the links in use
     once they are all of them, :func:`link_ages`)."""
     m, n, depth = model.n_uavs, model.n_links, model.depth
-    part = model_layout(m, n, model.n_pairs, model.batch)
-    at = state_layout(m, n, depth, 2 * model.batch * model.n_pairs)
+    part, at, _ = layouts(model)
     tab, fl, it = model.table, st.floats, st.ints
     now = k % depth
     first = total = 0
@@ -1225,8 +1258,7 @@ def links_in_use(model, st):
     """The links the laws use at the step (``act_*``, CSR by receiver, in the order of the
     candidates): the graph's, within range, that have received something."""
     m, n = model.n_uavs, model.n_links
-    part = model_layout(m, n, model.n_pairs, model.batch)
-    at = state_layout(m, n, model.depth, 2 * model.batch * model.n_pairs)
+    part, at, _ = layouts(model)
     tab, it, flags = model.table, st.ints, st.flags
     ranged = model.range2 < math.inf
     count = 0
@@ -1254,8 +1286,7 @@ def exchange(k, q, v, eta, leader, k0, k1, model, st, series):
     would be counted at every step); the work of the rare cases (a range,
     Gilbert-Elliott, the links in use changing, a stale link) is in functions of their
     own."""
-    at = state_layout(model.n_uavs, model.n_links, model.depth,
-                      2 * model.batch * model.n_pairs)  # fmt: skip
+    at = layouts(model)[1]
     it = st.ints
     ranged = model.range2 < math.inf
     if ranged:
@@ -1301,7 +1332,7 @@ def link_series(k, model, st, series):
     """Column ``k`` of ``series`` after the messages of step ``k``, rows 2 to 4
     (:func:`link_ages`), from the links in use (``act_*``)."""
     m = model.n_uavs
-    at = state_layout(m, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    at = layouts(model)[1]
     it = st.ints
     count = it[_U(at[10] + m)]
     total = 0
@@ -1319,7 +1350,7 @@ def connected_fresh(k, model, st):
     the UAVs whose edges are the links in use (``act_*``) whose last message is at most
     ``model.stale`` steps old (union-find in :attr:`LinkState.parent`)."""
     n = model.n_uavs
-    at = state_layout(n, model.n_links, model.depth, 2 * model.batch * model.n_pairs)
+    at = layouts(model)[1]
     it, stale, parent = st.ints, model.stale, at[13]
     for i in range(n):
         it[_U(parent + i)] = i
